@@ -1,0 +1,55 @@
+# osmap: set-up, demo, tests, benchmarks (GNU make).
+#
+#   make demo    create .venv, install osmap, synthesize two sample textures into out/
+#   make test    create .venv, install osmap, run the test suite
+#
+# Only Python >= 3.10 with pip (and a C compiler if a dependency has no wheel) is needed:
+# everything else comes from PyPI. Override the virtualenv folder with `make VENV=/path ...`.
+
+VENV ?= .venv
+PYTHON ?= python3
+PY = $(VENV)/bin/python
+OSMAP = $(VENV)/bin/osmap
+# Touched after a successful install; re-installs when pyproject.toml changes.
+STAMP = $(VENV)/.osmap-installed
+
+.DEFAULT_GOAL := help
+.PHONY: help venv demo test bench lint clean distclean
+
+help:
+	@echo "make demo       set up $(VENV) and synthesize two samples into out/"
+	@echo "make test       set up $(VENV) and run the tests"
+	@echo "make bench      set up $(VENV) and run the benchmarks (writes BENCHMARKS.md)"
+	@echo "make lint       ruff check ."
+	@echo "make venv       only create $(VENV) and install osmap (editable, with dev tools)"
+	@echo "make clean      remove out/ and caches; make distclean also removes $(VENV)"
+
+venv: $(STAMP)
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet "pip>=21.3"
+	$(PY) -m pip install --quiet -e ".[dev]"
+	@touch $@
+
+demo: venv
+	@mkdir -p out
+	$(OSMAP) synth samples/cells.png -o out/cells_synth.png --size 256
+	$(OSMAP) synth samples/brick.png -o out/brick_synth.png --size 256 --preset structured
+	@echo "demo outputs: out/cells_synth.png (from samples/cells.png), out/brick_synth.png (from samples/brick.png)"
+
+test: venv
+	$(PY) -m pytest
+
+bench: venv
+	$(PY) bench/run.py
+
+lint: venv
+	$(PY) -m ruff check .
+
+clean:
+	rm -rf out build dist .pytest_cache .ruff_cache *.egg-info
+	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
+
+distclean: clean
+	rm -rf $(VENV)

@@ -1,0 +1,1 @@
+"""Numba kernels of osmap, installed as `osmap_kernels`: pure functions, arrays in, arrays out."""

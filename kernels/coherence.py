@@ -1,0 +1,309 @@
+"""Coherence optimisation of a position field: the kernels behind the `refine` stage.
+
+A position field S (H, W, 2) holds, for every output pixel, a (row, col) position in the
+exemplar (float32; integral when the output-to-exemplar Jacobian J is the identity). Its rendered
+appearance is the exemplar's appearance features sampled at S. A sweep replaces S[p] by the
+candidate position whose exemplar neighbourhood best matches the current output neighbourhood of p
+(k-coherence + PatchMatch candidates), with a penalty on over-used exemplar regions.
+
+Determinism: a pass updates one colour of a red-black checkerboard, reading the previous field
+and writing a new one (Jacobi within a colour), and every random number is a hash of
+(seed, salt, pixel): the result does not depend on the thread count or scheduling.
+"""
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit, prange
+
+# Parameters of one refinement pass.
+#   radius    int64    neighbourhood half-size (matching window (2r+1)^2 of feature vectors)
+#   lam       float64  occupancy penalty: cost * (1 + lam * occupancy)
+#   wrap      bool     output is toroidal (tileable)
+#   lo, hi    float64[2] valid exemplar positions (the whole matching window stays inside)
+#   n_random  int64    PatchMatch random-search candidates at halving radii
+#   seed      uint64   user seed
+#   salt      uint64   distinguishes level / sweep / colour
+#   parity    int64    which checkerboard colour this pass updates
+RefineParams = namedtuple("RefineParams", "radius lam wrap lo hi n_random seed salt parity")
+
+
+@njit(cache=True, inline="always")
+def _hash_uniform(seed, salt, index, j):
+    """A uniform float in [0, 1) from four integers (splitmix64 finaliser)."""
+    z = np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15)
+    z ^= np.uint64(salt) * np.uint64(0xBF58476D1CE4E5B9)
+    z ^= np.uint64(index) * np.uint64(0x94D049BB133111EB)
+    z += np.uint64(j) * np.uint64(0x2545F4914F6CDD1D)
+    z ^= z >> np.uint64(30)
+    z *= np.uint64(0xBF58476D1CE4E5B9)
+    z ^= z >> np.uint64(27)
+    z *= np.uint64(0x94D049BB133111EB)
+    z ^= z >> np.uint64(31)
+    return (z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@njit(cache=True, inline="always")
+def _sample(feat, y, x, out):
+    """Bilinear sample of feat (h, w, F) at (y, x) into out (F,); exact fetch at integers."""
+    h, w, nf = feat.shape
+    y0 = int(np.floor(y))
+    x0 = int(np.floor(x))
+    fy = y - y0
+    fx = x - x0
+    y0 = min(max(y0, 0), h - 1)
+    x0 = min(max(x0, 0), w - 1)
+    if fy == 0.0 and fx == 0.0:
+        for f in range(nf):
+            out[f] = feat[y0, x0, f]
+        return
+    y1 = min(y0 + 1, h - 1)
+    x1 = min(x0 + 1, w - 1)
+    w00 = (1 - fy) * (1 - fx)
+    w01 = (1 - fy) * fx
+    w10 = fy * (1 - fx)
+    w11 = fy * fx
+    for f in range(nf):
+        out[f] = (w00 * feat[y0, x0, f] + w01 * feat[y0, x1, f]
+                  + w10 * feat[y1, x0, f] + w11 * feat[y1, x1, f])
+
+
+@njit(cache=True, inline="always")
+def _clamp(v, lo, hi):
+    return min(max(v, lo), hi)
+
+
+@njit(cache=True)
+def _candidate_cost(feat, cy, cx, jac, radius, nb, nb_ok, occ, lam, best, buf):
+    """Occupancy-weighted SSD between the gathered output neighbourhood nb and the exemplar
+    neighbourhood at (cy, cx); stops early once it cannot beat `best`."""
+    h, w = occ.shape
+    iy = min(max(int(cy + 0.5), 0), h - 1)
+    ix = min(max(int(cx + 0.5), 0), w - 1)
+    factor = 1.0 + lam * occ[iy, ix]
+    limit = best / factor
+    nf = feat.shape[2]
+    total = 0.0
+    n = 0
+    for dy in range(-radius, radius + 1):
+        for dx in range(-radius, radius + 1):
+            if not nb_ok[n]:
+                n += 1
+                continue
+            sy = cy + jac[0, 0] * dy + jac[0, 1] * dx
+            sx = cx + jac[1, 0] * dy + jac[1, 1] * dx
+            _sample(feat, sy, sx, buf)
+            for f in range(nf):
+                diff = nb[n * nf + f] - buf[f]
+                total += diff * diff
+            n += 1
+            if total >= limit:
+                return np.inf
+    return total * factor
+
+
+@njit(cache=True, parallel=True)
+def refine_pass(src, dst, feat, jac, knn, occ, p):
+    """One red-black pass: for pixels of colour p.parity, write the best candidate into dst.
+
+    src, dst float32[H, W, 2] (dst must be a copy of src); feat float32[h, w, F] exemplar
+    appearance; jac float32[H, W, 2, 2] output-to-exemplar Jacobian per pixel; knn int32[h, w, k, 2]
+    similar exemplar positions; occ float32[h, w] occupancy.
+    """
+    H, W = src.shape[0], src.shape[1]
+    nf = feat.shape[2]
+    r = p.radius
+    side = 2 * r + 1
+    k = knn.shape[2]
+    hmax = max(feat.shape[0], feat.shape[1])
+    for y in prange(H):
+        nb = np.empty(side * side * nf)
+        nb_ok = np.zeros(side * side, np.bool_)
+        buf = np.empty(nf)
+        for x in range((y + p.parity) % 2, W, 2):
+            J = jac[y, x]
+            # gather the output neighbourhood's current appearance
+            n = 0
+            for dy in range(-r, r + 1):
+                for dx in range(-r, r + 1):
+                    qy = y + dy
+                    qx = x + dx
+                    ok = True
+                    if p.wrap:
+                        qy %= H
+                        qx %= W
+                    elif qy < 0 or qy >= H or qx < 0 or qx >= W:
+                        ok = False
+                    nb_ok[n] = ok
+                    if ok:
+                        _sample(feat, src[qy, qx, 0], src[qy, qx, 1], buf)
+                        for f in range(nf):
+                            nb[n * nf + f] = buf[f]
+                    n += 1
+
+            by = src[y, x, 0]
+            bx = src[y, x, 1]
+            best = _candidate_cost(feat, by, bx, J, r, nb, nb_ok, occ, p.lam, np.inf, buf)
+            index = y * W + x
+            # coherent candidates from the 8 neighbours, and their k most similar positions
+            for dy in range(-1, 2):
+                for dx in range(-1, 2):
+                    if dy == 0 and dx == 0:
+                        continue
+                    qy = y + dy
+                    qx = x + dx
+                    if p.wrap:
+                        qy %= H
+                        qx %= W
+                    elif qy < 0 or qy >= H or qx < 0 or qx >= W:
+                        continue
+                    cy = src[qy, qx, 0] - (J[0, 0] * dy + J[0, 1] * dx)
+                    cx = src[qy, qx, 1] - (J[1, 0] * dy + J[1, 1] * dx)
+                    if cy < p.lo[0] or cy > p.hi[0] or cx < p.lo[1] or cx > p.hi[1]:
+                        continue
+                    cost = _candidate_cost(feat, cy, cx, J, r, nb, nb_ok, occ, p.lam, best, buf)
+                    if cost < best:
+                        best, by, bx = cost, cy, cx
+                    iy = int(cy + 0.5)
+                    ix = int(cx + 0.5)
+                    fy = cy - iy
+                    fx = cx - ix
+                    for j in range(k):
+                        ky = _clamp(knn[iy, ix, j, 0] + fy, p.lo[0], p.hi[0])
+                        kx = _clamp(knn[iy, ix, j, 1] + fx, p.lo[1], p.hi[1])
+                        cost = _candidate_cost(feat, ky, kx, J, r, nb, nb_ok, occ, p.lam,
+                                               best, buf)
+                        if cost < best:
+                            best, by, bx = cost, ky, kx
+            # PatchMatch random search around the best, at halving radii, plus one global draw
+            radius = hmax * 0.5
+            for j in range(p.n_random + 1):
+                u = _hash_uniform(p.seed, p.salt, index, 2 * j)
+                v = _hash_uniform(p.seed, p.salt, index, 2 * j + 1)
+                if j == p.n_random:
+                    cy = p.lo[0] + u * (p.hi[0] - p.lo[0])
+                    cx = p.lo[1] + v * (p.hi[1] - p.lo[1])
+                else:
+                    cy = by + (2 * u - 1) * radius
+                    cx = bx + (2 * v - 1) * radius
+                    radius *= 0.5
+                cy = _clamp(np.floor(cy) + (by - np.floor(by)), p.lo[0], p.hi[0])
+                cx = _clamp(np.floor(cx) + (bx - np.floor(bx)), p.lo[1], p.hi[1])
+                cost = _candidate_cost(feat, cy, cx, J, r, nb, nb_ok, occ, p.lam, best, buf)
+                if cost < best:
+                    best, by, bx = cost, cy, cx
+            dst[y, x, 0] = by
+            dst[y, x, 1] = bx
+
+
+@njit(cache=True, parallel=True)
+def knn_table(feat, lo0, hi0, lo1, hi1, k, stride, exclude):
+    """For every exemplar pixel, the k positions (from a grid of the given stride inside the
+    valid box) with the nearest appearance features, excluding those within `exclude` pixels.
+    Returns int32[h, w, k, 2]; ties are broken by scan order."""
+    h, w, nf = feat.shape
+    out = np.zeros((h, w, k, 2), np.int32)
+    ref_y = np.arange(lo0, hi0 + 1, stride)
+    ref_x = np.arange(lo1, hi1 + 1, stride)
+    for y in prange(h):
+        best_d = np.empty(k)
+        best_i = np.empty((k, 2), np.int64)
+        for x in range(w):
+            for j in range(k):
+                best_d[j] = np.inf
+                best_i[j, 0] = min(max(y, lo0), hi0)
+                best_i[j, 1] = min(max(x, lo1), hi1)
+            for ry in ref_y:
+                for rx in ref_x:
+                    if abs(ry - y) <= exclude and abs(rx - x) <= exclude:
+                        continue
+                    dist = 0.0
+                    for f in range(nf):
+                        diff = feat[y, x, f] - feat[ry, rx, f]
+                        dist += diff * diff
+                        if dist >= best_d[k - 1]:
+                            break
+                    if dist < best_d[k - 1]:
+                        j = k - 1
+                        while j > 0 and best_d[j - 1] > dist:
+                            best_d[j] = best_d[j - 1]
+                            best_i[j] = best_i[j - 1]
+                            j -= 1
+                        best_d[j] = dist
+                        best_i[j, 0] = ry
+                        best_i[j, 1] = rx
+            for j in range(k):
+                out[y, x, j, 0] = best_i[j, 0]
+                out[y, x, j, 1] = best_i[j, 1]
+    return out
+
+
+@njit(cache=True)
+def usage_counts(pos, h, w):
+    """How many output pixels use each exemplar pixel (nearest integer position)."""
+    counts = np.zeros((h, w), np.float32)
+    for y in range(pos.shape[0]):
+        for x in range(pos.shape[1]):
+            iy = min(max(int(pos[y, x, 0] + 0.5), 0), h - 1)
+            ix = min(max(int(pos[y, x, 1] + 0.5), 0), w - 1)
+            counts[iy, ix] += 1.0
+    return counts
+
+
+@njit(cache=True, parallel=True)
+def sample_image(image, pos):
+    """Render: the image (h, w, C) sampled bilinearly at every position of pos (H, W, 2)."""
+    H, W = pos.shape[0], pos.shape[1]
+    C = image.shape[2]
+    out = np.empty((H, W, C), np.float32)
+    for y in prange(H):
+        buf = np.empty(C, np.float32)
+        for x in range(W):
+            _sample(image, pos[y, x, 0], pos[y, x, 1], buf)
+            for c in range(C):
+                out[y, x, c] = buf[c]
+    return out
+
+
+@njit(cache=True)
+def _find(parent, i):
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@njit(cache=True)
+def copy_region_areas(pos, jac, wrap):
+    """Area of the verbatim-copy region around every pixel: the 4-connected set of pixels whose
+    positions continue each other coherently (S[q] - S[p] == J (q - p)). float32[H, W]."""
+    H, W = pos.shape[0], pos.shape[1]
+    parent = np.arange(H * W)
+    for y in range(H):
+        for x in range(W):
+            for step in range(2):
+                dy = 1 if step == 0 else 0
+                dx = 1 - dy
+                qy = y + dy
+                qx = x + dx
+                if qy >= H or qx >= W:
+                    if not wrap:
+                        continue
+                    qy %= H
+                    qx %= W
+                J = jac[y, x]
+                ey = pos[qy, qx, 0] - pos[y, x, 0] - (J[0, 0] * dy + J[0, 1] * dx)
+                ex = pos[qy, qx, 1] - pos[y, x, 1] - (J[1, 0] * dy + J[1, 1] * dx)
+                if abs(ey) < 1e-3 and abs(ex) < 1e-3:
+                    a = _find(parent, y * W + x)
+                    b = _find(parent, qy * W + qx)
+                    if a != b:
+                        parent[max(a, b)] = min(a, b)
+    counts = np.zeros(H * W, np.int64)
+    for i in range(H * W):
+        counts[_find(parent, i)] += 1
+    out = np.empty((H, W), np.float32)
+    for y in range(H):
+        for x in range(W):
+            out[y, x] = counts[_find(parent, y * W + x)]
+    return out

@@ -1,0 +1,59 @@
+"""A tqdm progress bar on stderr for the synthesis pipeline's ``progress`` callback.
+
+The pipeline calls ``progress(fraction)`` with the fraction of the total work done *since the
+previous call* (the increments add up to about 1). :class:`ProgressBar` is that callable; it
+draws nothing unless it is enabled, which the CLI does only when stderr is a terminal and
+``--quiet`` is not given.
+
+>>> with ProgressBar(enabled=sys.stderr.isatty(), desc="synth") as progress:
+...     synthesize(pixels, options, progress=progress)
+"""
+
+from __future__ import annotations
+
+import sys
+
+__all__ = ["ProgressBar"]
+
+_STEPS = 1000  # bar resolution: 0.1 %
+
+
+class ProgressBar:
+    """Callable progress sink: ``bar(fraction)`` advances by ``fraction`` of the whole job."""
+
+    def __init__(self, enabled: bool, desc: str = "", file=None):
+        self.done = 0.0
+        self._bar = None
+        if enabled:
+            from tqdm import tqdm  # imported only when a bar is drawn
+
+            self._bar = tqdm(
+                total=_STEPS,
+                desc=desc,
+                file=file if file is not None else sys.stderr,
+                leave=False,
+                dynamic_ncols=True,
+                bar_format="{desc}: {percentage:3.0f}%|{bar}| [{elapsed}<{remaining}]",
+            )
+
+    def __call__(self, fraction: float) -> None:
+        fraction = float(fraction)
+        if not fraction > 0.0:  # also ignores NaN
+            return
+        self.done = min(1.0, self.done + fraction)
+        if self._bar is not None:
+            target = int(round(self.done * _STEPS))
+            if target > self._bar.n:
+                self._bar.update(target - self._bar.n)
+
+    def close(self) -> None:
+        """Remove the bar from the terminal (it is not left behind)."""
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
+    def __enter__(self) -> ProgressBar:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -1,0 +1,96 @@
+"""The synthesis pipeline: pyramid -> organise (OS-Map, coarsest level) -> refine at every level
+-> render. `synthesize` is the library entry point behind `osmap synth`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from osmap_cli.synth.appearance import appearance_features
+from osmap_cli.synth.options import SynthOptions
+from osmap_cli.synth.organise import organise
+from osmap_cli.synth.pyramid import build_pyramid, half_size
+from osmap_cli.synth.refine import refine, upsample
+from osmap_cli.synth.render import render
+
+MIN_LEVEL_SIZE = 8  # the coarsest exemplar level keeps at least this many pixels per side
+
+
+@dataclass(frozen=True)
+class SynthResult:
+    """pixels: float32 (H, W, C) like the exemplar; positions: float32 (H, W, 2) exemplar
+    (row, col) of every output pixel."""
+
+    pixels: np.ndarray
+    positions: np.ndarray
+
+
+def level_count(exemplar_shape, out_shape, wanted: int) -> int:
+    """Pyramid levels, fewer than wanted when the exemplar or output would get too small."""
+    levels = 1
+    ex, out = tuple(exemplar_shape), tuple(out_shape)
+    while levels < wanted:
+        ex, out = half_size(ex), half_size(out)
+        if min(ex) < MIN_LEVEL_SIZE or min(out) < MIN_LEVEL_SIZE:
+            break
+        levels += 1
+    return levels
+
+
+def valid_box(shape, jac: np.ndarray, radius: int):
+    """Exemplar positions whose whole matching window stays inside the exemplar (lo, hi)."""
+    reach = radius * np.abs(jac).sum(axis=1)
+    margin = np.minimum(np.ceil(reach), (np.array(shape) - 1) // 2)
+    lo = margin.astype(np.float64)
+    hi = np.array(shape, np.float64) - 1 - margin
+    return lo, hi
+
+
+def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None) -> SynthResult:
+    """Synthesize a texture like `exemplar` (float32 (h, w, C), any channels, alpha included).
+
+    `progress`, if given, is called with a fraction of the total work as stages finish.
+    """
+    opts = options.validated().with_quality()
+    exemplar = np.ascontiguousarray(exemplar, np.float32)
+    if opts.method == "paper":
+        from osmap_cli.synth.paper import synthesize_paper
+        pos = synthesize_paper(exemplar.shape[:2], opts, progress=progress)
+        return SynthResult(render(exemplar, pos), pos)
+
+    out_shape = (opts.height, opts.width)
+    levels = level_count(exemplar.shape[:2], out_shape, opts.levels)
+    pyramid = build_pyramid(exemplar, levels)
+    shapes = [out_shape]
+    for _ in range(levels - 1):
+        shapes.append(half_size(shapes[-1]))
+    jac = opts.jacobian()
+    wrap = opts.tileable
+
+    work = [opts.coarse_sweeps + 1] + [opts.sweeps] * (levels - 1)
+    total = float(sum(work)) or 1.0
+
+    def advance(units):
+        if progress is not None:
+            progress(units / total)
+
+    pos = None
+    for level in range(levels - 1, -1, -1):
+        image = pyramid[level]
+        feat = appearance_features(image, opts.feature_dims)
+        lo, hi = valid_box(image.shape[:2], jac, opts.patch_radius)
+        jac_field = np.broadcast_to(jac.astype(np.float32), (*shapes[level], 2, 2)).copy()
+        if pos is None:
+            pos = organise(image.shape[:2], shapes[level], jac, lo, hi, opts, wrap=wrap,
+                           seed=opts.seed)
+            if np.allclose(jac, np.eye(2)):
+                pos = np.rint(pos)
+            advance(1)
+            sweeps = opts.coarse_sweeps
+        else:
+            pos = upsample(pos, shapes[level], jac_field, lo, hi)
+            sweeps = opts.sweeps
+        pos = refine(pos, feat, jac_field, lo, hi, sweeps, opts, wrap=wrap, seed=opts.seed,
+                     salt=level, progress=advance)
+    return SynthResult(render(exemplar, pos), pos)

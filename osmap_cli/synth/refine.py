@@ -1,0 +1,69 @@
+"""Refine: coherence sweeps on the position field, and upsampling between pyramid levels."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from osmap_cli.synth.options import SynthOptions
+from osmap_kernels.coherence import RefineParams, knn_table, refine_pass, usage_counts
+
+MAX_KNN_REFERENCES = 4096  # positions each exemplar pixel is compared with to find its k-NN
+
+
+def similar_positions(feat: np.ndarray, lo, hi, k: int) -> np.ndarray:
+    """int32 (h, w, max(k, 1), 2): for each exemplar pixel, k positions that look alike."""
+    area = (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1)
+    stride = max(1, math.ceil(math.sqrt(area / MAX_KNN_REFERENCES)))
+    return knn_table(feat, int(lo[0]), int(hi[0]), int(lo[1]), int(hi[1]), max(k, 1), stride, 2)
+
+
+def occupancy(pos: np.ndarray, exemplar_shape, radius: int = 2) -> np.ndarray:
+    """Blurred usage count of each exemplar pixel, 1 where usage is uniform."""
+    h, w = exemplar_shape
+    counts = usage_counts(pos, h, w).astype(np.float64)
+    size = 2 * radius + 1
+    padded = np.pad(counts, radius, mode="constant")
+    csum = padded.cumsum(0).cumsum(1)
+    csum = np.pad(csum, ((1, 0), (1, 0)))
+    box = (csum[size:, size:] - csum[:-size, size:] - csum[size:, :-size] + csum[:-size, :-size])
+    expected = pos.shape[0] * pos.shape[1] / float(h * w) * size * size
+    return (box / expected).astype(np.float32)
+
+
+def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, sweeps: int,
+           opts: SynthOptions, *, wrap: bool, seed: int, salt: int, progress=None) -> np.ndarray:
+    """`sweeps` red-black coherence sweeps over pos (H, W, 2); returns the new field."""
+    knn = similar_positions(feat, lo, hi, opts.knn)
+    if opts.knn == 0:
+        knn = knn[:, :, :0]
+    for sweep in range(sweeps):
+        occ = occupancy(pos, feat.shape[:2])
+        for parity in (0, 1):
+            params = RefineParams(
+                radius=opts.patch_radius, lam=float(opts.occupancy), wrap=wrap,
+                lo=np.asarray(lo, np.float64), hi=np.asarray(hi, np.float64),
+                n_random=opts.random_candidates, seed=np.uint64(seed),
+                salt=np.uint64(salt * 1000 + sweep * 2 + parity), parity=parity)
+            out = pos.copy()
+            refine_pass(pos, out, feat, jac_field, knn, occ, params)
+            pos = out
+        if progress is not None:
+            progress(1)
+    return pos
+
+
+def upsample(pos: np.ndarray, out_shape, jac_field: np.ndarray, lo, hi) -> np.ndarray:
+    """Positions for the next finer level: 2 S[p // 2] + J (p mod 2), kept inside [lo, hi]."""
+    H, W = out_shape
+    ys = np.minimum(np.arange(H) // 2, pos.shape[0] - 1)
+    xs = np.minimum(np.arange(W) // 2, pos.shape[1] - 1)
+    dy = (np.arange(H) - 2 * ys).astype(np.float32)
+    dx = (np.arange(W) - 2 * xs).astype(np.float32)
+    coarse = pos[ys][:, xs]
+    offset = (jac_field[..., :, 0] * dy[:, None, None] + jac_field[..., :, 1] * dx[None, :, None])
+    fine = 2.0 * coarse + offset
+    fine[..., 0] = np.clip(fine[..., 0], lo[0], hi[0])
+    fine[..., 1] = np.clip(fine[..., 1], lo[1], hi[1])
+    return fine.astype(np.float32)

@@ -1,0 +1,1 @@
+"""Named parameter sets (TOML files in this folder), shipped as package data."""

@@ -1,0 +1,92 @@
+"""Shared fixtures: where the repository, the samples and the installed `osmap` script are, and
+a helper that runs the command line in-process."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+# As `osmap` does (osmap_cli.cli.main): numpy's BLAS single-threaded. Multi-threaded OpenBLAS
+# makes each small PCA call of the pipeline hundreds of times slower on a busy machine. This must
+# run before numpy is imported.
+for _variable in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")
+
+REPO = Path(__file__).resolve().parent.parent
+SAMPLES = REPO / "samples"
+PRESETS = REPO / "presets"
+
+
+@pytest.fixture(scope="session")
+def repo_root() -> Path:
+    """The repository root."""
+    return REPO
+
+
+@pytest.fixture(scope="session")
+def samples() -> Path:
+    """The folder of sample exemplars (samples/README.md lists them)."""
+    return SAMPLES
+
+
+@pytest.fixture(scope="session")
+def small_samples(tmp_path_factory) -> Path:
+    """64x64 crops of the samples, same names (cells.png, brick.png, weave.png, cells_rgba.png).
+
+    Synthesis time is dominated by analysing the exemplar, so tests that only check plumbing
+    (formats, channels, errors) run on these.
+    """
+    from osmap_cli.imageio import read_image, write_image
+
+    folder = tmp_path_factory.mktemp("small_samples")
+    for name in ("cells.png", "brick.png", "weave.png", "cells_rgba.png"):
+        pixels = read_image(SAMPLES / name).pixels[:64, :64]
+        write_image(folder / name, pixels, 8)
+    return folder
+
+
+@pytest.fixture(scope="session")
+def osmap_exe() -> str:
+    """Path of the installed `osmap` console script (next to this Python, else on PATH)."""
+    candidate = Path(sys.executable).parent / ("osmap.exe" if os.name == "nt" else "osmap")
+    if candidate.exists():
+        return str(candidate)
+    found = shutil.which("osmap")
+    if found is None:
+        pytest.skip("the osmap console script is not installed (pip install -e .)")
+    return found
+
+
+@dataclass
+class CliResult:
+    """Outcome of one in-process `osmap` run."""
+
+    code: int
+    out: str
+    err: str
+
+    @property
+    def err_lines(self) -> list[str]:
+        return self.err.splitlines()
+
+
+@pytest.fixture
+def run_cli(capsys):
+    """Run `osmap ARGS...` in-process through osmap_cli.cli.main; returns a CliResult.
+
+    stderr is not a terminal here, so no progress bar is drawn.
+    """
+    from osmap_cli.cli import main
+
+    def run(*args) -> CliResult:
+        capsys.readouterr()  # drop anything printed before
+        code = main([str(a) for a in args])
+        captured = capsys.readouterr()
+        return CliResult(code, captured.out, captured.err)
+
+    return run

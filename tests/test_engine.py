@@ -1,0 +1,137 @@
+"""The OS-Map engine: Kohonen special case, fast path == general path, locality, determinism."""
+
+import numpy as np
+import pytest
+
+from osmap_cli.engine import Orientation, OSMap, Schedule
+
+SCHEDULE = Schedule(alpha_max=0.5, alpha_min=0.01, sigma_max=3.0, sigma_min=0.5)
+
+
+def kohonen_reference(weights, data, order, shape, wrap, schedule):
+    """Textbook online Gaussian SOM in numpy (float64), updating every node."""
+    w = weights.astype(np.float64).copy()
+    coords = np.stack(np.unravel_index(np.arange(len(w)), shape), 1)
+    alphas, sigmas = schedule.values(np.arange(len(order)), len(order))
+    for t, i in enumerate(order):
+        x = data[i]
+        c = np.argmin(((w - x) ** 2).sum(1))
+        d = np.abs(coords - coords[c]).astype(np.float64)
+        for a, (size, wrapped) in enumerate(zip(shape, wrap)):
+            if wrapped:
+                d[:, a] = np.minimum(d[:, a], size - d[:, a])
+        h = alphas[t] * np.exp(-(d ** 2).sum(1) / (2 * sigmas[t] ** 2))
+        w += h[:, None] * (x - w)
+    return w
+
+
+@pytest.mark.parametrize("shape,wrap", [((10, 12), (True, False)), ((30,), (False,)),
+                                        ((4, 5, 6), (False, True, False))])
+def test_special_case_is_kohonen_som(shape, wrap):
+    rng = np.random.default_rng(1)
+    data = rng.random((400, 3))
+    order = rng.integers(0, len(data), 1500)
+    som = OSMap(shape, 3, wrap=wrap, cutoff=0.0)  # isotropic, global window, no truncation
+    som.init_random(data, seed=2)
+    expected = kohonen_reference(som.weights, data, order, shape, wrap, SCHEDULE)
+    som.train(data, order=order, schedule=SCHEDULE)
+    np.testing.assert_allclose(som.weights, expected, atol=2e-5)
+
+
+def test_truncated_kernel_stays_close_to_full_kernel():
+    rng = np.random.default_rng(3)
+    data = rng.random((300, 2))
+    full = OSMap((16, 16), 2, cutoff=0.0).init_random(data, 0)
+    cut = OSMap((16, 16), 2).init_random(data, 0)
+    full.train(data, 3000, schedule=SCHEDULE, seed=4)
+    cut.train(data, 3000, schedule=SCHEDULE, seed=4)
+    assert np.abs(full.weights - cut.weights).max() < 0.05
+
+
+def test_separable_path_matches_general_path():
+    rng = np.random.default_rng(5)
+    data = rng.random((500, 3))
+    orientation = Orientation.axis_aligned([[1.0, 0.25], [0.25, 1.0], [0.6, 0.6]])
+    kwargs = dict(orientation=orientation, window=(8, 9), range_kernel=(2.0, 1.0))
+    fast = OSMap((20, 24), 3, **kwargs).init_random(data, 0)
+    general = OSMap((20, 24), 3, path="general", **kwargs).init_random(data, 0)
+    assert fast._params.separable and not general._params.separable
+    fast.train(data, 4000, schedule=SCHEDULE, seed=6)
+    general.train(data, 4000, schedule=SCHEDULE, seed=6)
+    np.testing.assert_allclose(fast.weights, general.weights, atol=1e-5)
+
+
+def test_rotated_orientation_changes_the_result():
+    rng = np.random.default_rng(7)
+    data = rng.random((500, 2))
+    a = OSMap((20, 20), 2, orientation=Orientation.angles([0, 0], [[1, 0.25]] * 2))
+    b = OSMap((20, 20), 2, orientation=Orientation.angles([0.7, 0.7], [[1, 0.25]] * 2))
+    for som in (a, b):
+        som.init_random(data, 0).train(data, 4000, schedule=SCHEDULE, seed=1)
+    assert np.abs(a.weights - b.weights).max() > 0.05
+
+
+def test_anisotropic_kernel_orients_the_gradients():
+    """Component 0 may vary only along axis 0, component 1 only along axis 1 (weight 0 across):
+    each component ends up nearly constant across its broad direction."""
+    rng = np.random.default_rng(8)
+    data = rng.random((2000, 2))
+    som = OSMap((16, 16), 2, orientation=Orientation.axis_aligned([[1.0, 0.0], [0.0, 1.0]]))
+    som.init_random(data, 0).train(data, 20000, schedule=Schedule(sigma_max=4, sigma_min=0.7),
+                                   seed=2)
+    grid = som.grid_weights()
+    assert grid[..., 0].std(axis=1).mean() < 0.02   # component 0 constant along axis 1
+    assert grid[..., 1].std(axis=0).mean() < 0.02   # component 1 constant along axis 0
+    assert grid[..., 0].std(axis=0).mean() > 0.2    # ...and spread along its own axis
+
+
+def test_local_window_restricts_winners():
+    data = np.random.default_rng(9).random((100, 2))
+    som = OSMap((32, 32), 2, window=(4, 4)).init_random(data, 0)
+    from osmap_kernels.som import train_steps
+    p = som._params
+    origins = np.array([[0, 10, 20]] * 50, np.int64)
+    alphas, sigmas = SCHEDULE.values(np.arange(50), 50)
+    winners = train_steps(som.weights, data[:50], origins, alphas, sigmas, p)
+    rows, cols = np.divmod(winners, 32)
+    assert rows.min() >= 10 and rows.max() < 14 and cols.min() >= 20 and cols.max() < 24
+
+
+def test_periodic_component_wraps():
+    angles = np.linspace(0, 2 * np.pi, 200, endpoint=False)[:, None]
+    som = OSMap((40,), 1, wrap=(True,), periods=[2 * np.pi]).init_random(angles, 0)
+    som.train(angles, 20000, schedule=Schedule(sigma_max=6, sigma_min=0.5), seed=1)
+    w = som.weights[:, 0]
+    assert w.min() >= 0 and w.max() < 2 * np.pi
+    steps = np.angle(np.exp(1j * np.diff(np.r_[w, w[0]])))
+    # one full turn around the ring: wrapped steps all have one sign and sum to +-2 pi
+    assert abs(abs(steps.sum()) - 2 * np.pi) < 1e-3
+    assert (np.sign(steps) == np.sign(steps.sum())).all()
+
+
+def test_same_seed_same_weights_and_different_seed_differs():
+    data = np.random.default_rng(10).random((300, 3))
+    runs = [OSMap((12, 12), 3, window=(6, 6)).init_random(data, 0)
+            .train(data, 3000, schedule=SCHEDULE, seed=s).weights for s in (1, 1, 2)]
+    assert np.array_equal(runs[0], runs[1])
+    assert not np.array_equal(runs[0], runs[2])
+
+
+def test_coherent_target_copies_the_data_space():
+    """With target x + J D the map learns a translated copy: neighbouring nodes differ by J."""
+    pos = np.stack(np.meshgrid(np.arange(32.0), np.arange(32.0), indexing="ij"), -1).reshape(-1, 2)
+    som = OSMap((24, 24), 2, window=(24, 24), target_jacobian=np.eye(2), range_kernel=(2, 1),
+                bounds=[[0, 31], [0, 31]]).init_random(pos, 0)
+    som.train(pos, 20000, schedule=Schedule(sigma_max=3, sigma_min=0.3, alpha_min=0.05), seed=3)
+    grid = som.grid_weights()
+    step_rows = np.diff(grid[..., 0], axis=0)
+    assert np.mean(np.abs(step_rows - 1) < 0.25) > 0.6
+
+
+def test_invalid_arguments_raise():
+    with pytest.raises(ValueError):
+        OSMap((4, 4, 4, 4), 2)
+    with pytest.raises(ValueError):
+        OSMap((8, 8), 2, window=(9, 2))
+    with pytest.raises(ValueError):
+        OSMap((8, 8), 2, path="fast")

@@ -1,0 +1,80 @@
+"""Objective texture statistics for the tests (numpy only, no code shared with the pipeline).
+
+All distances are on values in [0, 1]; patch distances are RMS per pixel and channel.
+"""
+
+import numpy as np
+
+
+def patches(image: np.ndarray, size: int = 7, stride: int = 1) -> np.ndarray:
+    """All size x size patches (flattened) at the given stride."""
+    h, w, c = image.shape
+    view = np.lib.stride_tricks.sliding_window_view(image, (size, size), axis=(0, 1))
+    return view[::stride, ::stride].reshape(-1, c * size * size).astype(np.float64)
+
+
+def nearest_distances(queries: np.ndarray, references: np.ndarray) -> np.ndarray:
+    """RMS distance from each query patch to its nearest reference patch."""
+    ref_sq = (references ** 2).sum(1)
+    out = np.empty(len(queries))
+    for start in range(0, len(queries), 512):
+        q = queries[start:start + 512]
+        d2 = (q ** 2).sum(1)[:, None] + ref_sq[None] - 2 * q @ references.T
+        out[start:start + 512] = np.sqrt(np.maximum(d2.min(1), 0) / q.shape[1])
+    return out
+
+
+def coherence(exemplar: np.ndarray, output: np.ndarray, stride: int = 3) -> float:
+    """Mean distance from output patches to their nearest exemplar patch (seams, invented
+    content and noise raise it)."""
+    return float(nearest_distances(patches(output, stride=stride), patches(exemplar)).mean())
+
+
+def completeness(exemplar: np.ndarray, output: np.ndarray, stride: int = 3) -> float:
+    """Mean distance from exemplar patches to their nearest output patch (missing content)."""
+    return float(nearest_distances(patches(exemplar, stride=stride), patches(output)).mean())
+
+
+def histogram_distance(exemplar: np.ndarray, output: np.ndarray) -> float:
+    """Per-channel 1D Wasserstein distance of the value distributions, averaged."""
+    q = np.linspace(0, 1, 257)
+    return float(np.mean([np.abs(np.quantile(exemplar[..., c], q) - np.quantile(output[..., c], q))
+                          .mean() for c in range(exemplar.shape[2])]))
+
+
+def _radial_spectrum(image: np.ndarray, bins: int = 24):
+    gray = image.mean(axis=2)
+    gray = gray - gray.mean()
+    h, w = gray.shape
+    window = np.outer(np.hanning(h), np.hanning(w))
+    power = np.abs(np.fft.fftshift(np.fft.fft2(gray * window))) ** 2
+    fy, fx = np.meshgrid(np.fft.fftshift(np.fft.fftfreq(h)), np.fft.fftshift(np.fft.fftfreq(w)),
+                         indexing="ij")
+    radius = np.hypot(fy, fx)
+    edges = np.linspace(0.01, 0.5, bins + 1)
+    centers = 0.5 * (edges[1:] + edges[:-1])
+    spectrum = np.array([power[(radius >= a) & (radius < b)].mean()
+                         for a, b in zip(edges[:-1], edges[1:])])
+    return centers, spectrum / spectrum.sum()
+
+
+def feature_scale(exemplar: np.ndarray, output: np.ndarray) -> float:
+    """Feature-size ratio output / exemplar from the spectral centroid (1 = same scale)."""
+    f, se = _radial_spectrum(exemplar)
+    _, so = _radial_spectrum(output)
+    return float((f * se).sum() / (f * so).sum())
+
+
+def spectrum_distance(exemplar: np.ndarray, output: np.ndarray) -> float:
+    """RMS difference (decades) of the normalised radial log power spectra."""
+    _, se = _radial_spectrum(exemplar)
+    _, so = _radial_spectrum(output)
+    return float(np.sqrt(np.mean((np.log10(se + 1e-12) - np.log10(so + 1e-12)) ** 2)))
+
+
+def dominant_orientation(image: np.ndarray) -> float:
+    """Angle (degrees, [0, 180)) of the dominant gradient direction (structure tensor)."""
+    gray = image.mean(axis=2)
+    gy, gx = np.gradient(gray)
+    jxx, jyy, jxy = (gx * gx).sum(), (gy * gy).sum(), (gx * gy).sum()
+    return float(np.degrees(0.5 * np.arctan2(2 * jxy, jxx - jyy)) % 180.0)
