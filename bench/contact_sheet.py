@@ -147,7 +147,7 @@ def write_jpeg(buf: oiio.ImageBuf, path: Path, log=print) -> Path:
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}.jpg")
     out = oiio.ImageBuf(buf.spec())
     oiio.ImageBufAlgo.copy(out, buf, oiio.UINT8)
-    for quality in (92, 90, 88, 85, 82, 80, 75, 70, 65, 60):
+    for quality in (92, 90, 88, 86, 84, 82, 80, 78, 76, 74, 72, 70, 65, 60):
         out.specmod().attribute("Compression", f"jpeg:{quality}")
         if not out.write(str(tmp), oiio.UINT8):
             raise RuntimeError(f"could not write {path}: {out.geterror()}")

@@ -280,6 +280,14 @@ def evaluate(variant: Variant, names: list[str], outdir: Path, seed: int = SEED,
 
     def score(name: str):
         out = folder / f"{name}.png"
+        cached = folder / f"{name}.json"
+        if reuse and not errmap and cached.exists() and out.exists() \
+                and cached.stat().st_mtime >= out.stat().st_mtime:
+            data = json.loads(cached.read_text())
+            if ("seam_z" in data) == variant.tileable:  # scored the way this variant is
+                with lock:
+                    result.metrics[name] = flatten(data)
+                return
         try:
             data = common.texmetrics(variant.exemplar(name), out, tileable=variant.tileable,
                                      errmap=folder / f"{name}_err.png" if errmap else None)
@@ -543,7 +551,8 @@ def main(argv=None) -> int:
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a SynthOptions field (repeatable), e.g. --set knn=6")
     ap.add_argument("--reuse", action="store_true",
-                    help="score the outputs already in OUTDIR instead of synthesizing")
+                    help="use the outputs (and scores) already in OUTDIR; only the missing "
+                         "ones are synthesized / scored")
     ap.add_argument("--overlap", action="store_true",
                     help="score while synthesizing (faster; synthesis seconds get noisy)")
     ap.add_argument("--errmap", action="store_true", help="also write <name>_err.png heat maps")
@@ -573,6 +582,12 @@ def main(argv=None) -> int:
         if not sep:
             ap.error(f"--set expects KEY=VALUE, got {item!r}")
         overrides[key.strip().replace("-", "_")] = parse_value(value.strip())
+    if overrides:
+        from osmap_cli.synth import SynthOptions
+        try:
+            SynthOptions(**overrides).validated()
+        except Exception as exc:  # noqa: BLE001 - TypeError (unknown field) or OsmapError
+            ap.error(f"--set: {exc}")
 
     def log(msg):
         if not args.quiet:
