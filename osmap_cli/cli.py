@@ -226,9 +226,8 @@ copied from: a 2-channel float EXR, channel "u" = exemplar column (x) and
 top-left exemplar pixel.
 
 Same inputs, options and seed give the same output, whatever the number of
-threads (NUMBA_NUM_THREADS): byte for byte for PNG and JPEG (EXR and TIFF
-files also carry their write time). Outputs are written atomically: on any
-error nothing is written.
+threads (NUMBA_NUM_THREADS), byte for byte in every format. Outputs are
+written atomically: on any error nothing is written.
 """
 
 SYNTH_EPILOG = """\b
