@@ -41,7 +41,9 @@ demo: venv
 test: venv
 	$(PY) -m pytest
 
+# MiniSom is a benchmark-only dependency (the classic-SOM comparison), not a runtime one.
 bench: venv
+	$(PY) -m pip install --quiet minisom
 	$(PY) bench/run.py
 
 lint: venv

@@ -265,5 +265,15 @@ def load_module(path: Path, name: str):
     return module
 
 
+def section_main(doc: str, run, argv=None) -> int:
+    """`python bench/bench_X.py [--quick]`: print the section that run(quick, log) returns."""
+    import argparse
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="a shorter pass")
+    args = ap.parse_args(argv)
+    print(run(quick=args.quick, log=lambda m: print(m, file=sys.stderr, flush=True)))
+    return 0
+
+
 def fresh_dir(prefix: str) -> Path:
     return Path(tempfile.mkdtemp(prefix=prefix, dir=tmp_root()))

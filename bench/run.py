@@ -5,8 +5,13 @@ Sections:
   quality  texmetrics scores on the dev exemplars + docs/ contact sheets (bench/quality.py),
            about 15 min; needs ../shared (skipped with a note when absent)
   surface  bench/bench_surface.py's run() (skipped with a note when the file is absent)
+  solid    bench/bench_solid.py's run() (skipped with a note when the file is absent)
+  som      the classic SOM case against MiniSom (bench/bench_som.py), about 8 min
+  kernels  OS-Map kernel paths and winner search against window size (bench/bench_kernels.py)
+  roofline bytes and flops per kernel against measured bandwidth and flop rate (same file)
+  memory   1024x1024 end to end and peak RSS against output size (bench/bench_memory.py)
 
-    .venv/bin/python bench/run.py [--quick] [--only synth,quality,surface] [--out BENCHMARKS.md]
+    .venv/bin/python bench/run.py [--quick] [--only synth,som,...] [--out BENCHMARKS.md]
 
 Sections that are not run keep their text from the previous file, so `--only quality` does not
 wipe the speed table; every section records when and at which commit it was measured.
@@ -25,11 +30,13 @@ from pathlib import Path
 import common
 from common import BENCH_DIR, REPO_ROOT
 
-SECTIONS = ("synth", "quality", "surface")
+SECTIONS = ("synth", "quality", "surface", "solid", "som", "kernels", "roofline", "memory")
 MARKER = "<!-- bench-section: {} -->"
 MARKER_RE = re.compile(r"^<!-- bench-section: (\w+) -->\s*$", re.M)
 # For files written before the markers existed: the heading each section starts with.
-HEADING_PREFIX = {"synth": "## Speed", "quality": "## Quality", "surface": "## Surface"}
+HEADING_PREFIX = {"synth": "## Speed", "quality": "## Quality", "surface": "## Surface",
+                  "solid": "## Solid", "som": "## Classic SOM", "kernels": "## OS-Map kernels",
+                  "roofline": "## Roofline", "memory": "## Memory"}
 COMMANDS = {s: f".venv/bin/python bench/run.py --only {s}" for s in SECTIONS}
 
 
@@ -64,31 +71,62 @@ def run_quality(args, log) -> str:
     return quality.run(quick=args.quick, outdir=args.quality_dir, jobs=args.jobs, log=log)
 
 
-def run_surface(args, log) -> str:
-    path = BENCH_DIR / "bench_surface.py"
-    module = common.load_module(path, "bench_surface")
+def run_optional(name: str, title: str, args, log) -> str:
+    """The section from bench/bench_<name>.py's run() (a note when the file does not exist)."""
+    path = BENCH_DIR / f"bench_{name}.py"
+    module = common.load_module(path, f"bench_{name}")
     if module is None:
-        log(f"[surface] {common.rel(path)} does not exist yet: section skipped")
-        return ("## Surface\n\n_Skipped: `bench/bench_surface.py` does not exist yet "
+        log(f"[{name}] {common.rel(path)} does not exist yet: section skipped")
+        return (f"## {title}\n\n_Skipped: `bench/bench_{name}.py` does not exist yet "
                 f"({common.utc_now()})._\n")
     params = inspect.signature(module.run).parameters
     text = module.run(quick=args.quick) if "quick" in params else module.run()
     text = text.strip("\n") + "\n"
-    if COMMANDS["surface"] not in text:
+    if COMMANDS[name] not in text:
         # add the stamp and the command under the section's first heading
         lines = text.splitlines()
         at = next((i for i, ln in enumerate(lines) if ln.startswith("## ")), None)
         quick = " --quick" if args.quick else ""
-        note = f"_{common.stamp()}; reproduce with `{COMMANDS['surface']}{quick}`._"
+        note = f"_{common.stamp()}; reproduce with `{COMMANDS[name]}{quick}`._"
         if at is None:
-            lines = ["## Surface", "", note, "", *lines]
+            lines = [f"## {title}", "", note, "", *lines]
         else:
             lines[at + 1:at + 1] = ["", note]
         text = "\n".join(lines) + "\n"
     return text
 
 
-RUNNERS = {"synth": run_synth, "quality": run_quality, "surface": run_surface}
+def run_surface(args, log) -> str:
+    return run_optional("surface", "Surface", args, log)
+
+
+def run_solid(args, log) -> str:
+    return run_optional("solid", "Solid", args, log)
+
+
+def run_som(args, log) -> str:
+    import bench_som
+    return bench_som.run(quick=args.quick, log=log)
+
+
+def run_kernels(args, log) -> str:
+    import bench_kernels
+    return bench_kernels.run_kernels(quick=args.quick, log=log)
+
+
+def run_roofline(args, log) -> str:
+    import bench_kernels
+    return bench_kernels.run_roofline(quick=args.quick, log=log)
+
+
+def run_memory(args, log) -> str:
+    import bench_memory
+    return bench_memory.run(quick=args.quick, log=log)
+
+
+RUNNERS = {"synth": run_synth, "quality": run_quality, "surface": run_surface,
+           "solid": run_solid, "som": run_som, "kernels": run_kernels,
+           "roofline": run_roofline, "memory": run_memory}
 
 
 def header(ran: list[str], quick: bool, durations: dict) -> str:
@@ -98,7 +136,7 @@ def header(ran: list[str], quick: bool, durations: dict) -> str:
         "",
         "Generated by `bench/run.py` (`make bench`). Reproduce everything with "
         "`.venv/bin/python bench/run.py`, one section with "
-        "`.venv/bin/python bench/run.py --only synth|quality|surface`, a shorter pass with "
+        f"`.venv/bin/python bench/run.py --only {'|'.join(SECTIONS)}`, a shorter pass with "
         "`--quick`. Sections not rerun are kept from the previous file; each section says when "
         "and at which commit it was measured. Times are from a shared 2-core development "
         "machine: read the ratios and the baselines measured in the same run, not the absolute "
@@ -135,7 +173,6 @@ def main(argv=None) -> int:
     def log(msg):
         print(msg, file=sys.stderr, flush=True)
 
-    previous = previous_sections(out_path)
     texts, durations, failed = {}, {}, []
     for name in SECTIONS:
         if name not in wanted:
@@ -154,6 +191,8 @@ def main(argv=None) -> int:
         durations[name] = time.perf_counter() - t0
         log(f"=== {name}: {durations[name] / 60:.1f} min ===")
 
+    # read the kept sections only now: another run may have rewritten the file meanwhile
+    previous = previous_sections(out_path)
     parts = [header([s for s in SECTIONS if s in texts], args.quick, durations)]
     for name in SECTIONS:
         body = texts.get(name) or previous.get(name)

@@ -8,6 +8,11 @@ are computed by the caller, so the kernel is a pure function of its arrays and i
 Map nodes live on a grid padded to three axes (a 2D map of shape (H, W) is (1, H, W)); node i has
 grid coordinates (i // (g1*g2), (i // g2) % g1, i % g2). D is the map-space vector from the winner
 to a node, in those padded coordinates.
+
+Winner search has two exact strategies with the same result (ties: first node in the window's
+scan order): a brute-force scan of the window, and an inverse map (`Buckets`): nodes bucketed on
+a data-space grid by their model vector, kept up to date by the update, searched in growing rings
+of cells around x until no unvisited cell can hold a nearer node.
 """
 
 from collections import namedtuple
@@ -26,14 +31,25 @@ from numba import njit
 #   periods   float64[d]      period of each data component (0: not periodic)
 #   lo, hi    float64[d]      targets outside [lo, hi] are not applied to that node
 #   range_a, range_b  float64 range kernel exp(-|t - m|^2 / 2 tau^2), tau = a*sigma + b (0: off)
-#   cutoff    float64         neighbourhood weights below cutoff * alpha are skipped
+#   cutoff    float64         neighbourhood weights below cutoff are skipped
 KernelParams = namedtuple(
     "KernelParams",
     "grid wrap window quad extent separable jac periods lo hi range_a range_b cutoff",
 )
 
+# The inverse map: a data-space bucket grid over up to 3 non-periodic components.
+#   active    bool        use it (False: brute-force scan; the arrays may then be empty)
+#   comps     int64[3]    data component of each bucket axis (-1: unused axis, one cell)
+#   shape     int64[3]    cells per axis
+#   origin    float64[3]  cell c covers origin + [c, c + 1) * size along each axis
+#   inv_size  float64[3]  1 / size (the cells at either end reach on to infinity)
+#   size      float64[3]  cell size
+#   head      int64[C]    first node filed under each cell (-1: empty)
+#   links     int64[3, N] per node: next and previous node in its cell's list, and its cell
+Buckets = namedtuple("Buckets", "active comps shape origin inv_size size head links")
 
-@njit(cache=True, inline="always")
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _wrapped_diff(a, period):
     """a reduced to [-period/2, period/2) when period > 0."""
     if period > 0.0:
@@ -41,41 +57,295 @@ def _wrapped_diff(a, period):
     return a
 
 
-@njit(cache=True)
-def find_winner(weights, x, grid, wrap, origin, window, periods):
+@njit(cache=True, inline="always", error_model="numpy")
+def _wrap_index(a, g):
+    """Grid coordinate a (within one period of [0, g)) brought into [0, g)."""
+    if a < 0:
+        return a + g
+    if a >= g:
+        return a - g
+    return a
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _run(c, start, last, g):
+    """A run of offsets [start, stop] from grid coordinate c along an axis of size g that stays
+    contiguous in memory (stops where the axis wraps around): (coordinate of start, stop)."""
+    a = _wrap_index(c + start, g)
+    return a, min(last, start + g - 1 - a)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _node_dist(weights, i, x, periods):
+    """Squared distance from x to node i's model vector (periodic components wrapped)."""
+    dist = 0.0
+    for k in range(weights.shape[1]):
+        diff = _wrapped_diff(x[k] - weights[i, k], periods[k])
+        dist += diff * diff
+    return dist
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _run_dists(weights, i0, n, x, periods, out):
+    """out[j] = squared distance from x to node i0 + j, j < n, summed over k in the same order
+    as `_node_dist` (so the values are identical); component-major so the loops vectorise."""
+    d = weights.shape[1]
+    if d == 2 and periods[0] == 0.0 and periods[1] == 0.0:
+        x0, x1 = x[0], x[1]  # unrolled: the common 2D case vectorises across nodes
+        for j in range(n):
+            e0 = x0 - weights[i0 + j, 0]
+            e1 = x1 - weights[i0 + j, 1]
+            out[j] = 0.0 + e0 * e0 + e1 * e1
+        return
+    if d == 3 and periods[0] == 0.0 and periods[1] == 0.0 and periods[2] == 0.0:
+        x0, x1, x2 = x[0], x[1], x[2]
+        for j in range(n):
+            e0 = x0 - weights[i0 + j, 0]
+            e1 = x1 - weights[i0 + j, 1]
+            e2 = x2 - weights[i0 + j, 2]
+            out[j] = 0.0 + e0 * e0 + e1 * e1 + e2 * e2
+        return
+    for j in range(n):
+        out[j] = 0.0
+    for k in range(d):
+        xk = x[k]
+        period = periods[k]
+        if period > 0.0:
+            for j in range(n):
+                diff = _wrapped_diff(xk - weights[i0 + j, k], period)
+                out[j] += diff * diff
+        else:
+            for j in range(n):
+                diff = xk - weights[i0 + j, k]
+                out[j] += diff * diff
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def find_winner(weights, x, grid, origin, window, periods, dists):
     """Index of the node nearest to x (squared Euclidean, periodic components wrapped) among the
     nodes of the window [origin, origin + window) (wrapping on wrapped axes). Ties: first node in
-    scan order."""
-    d = weights.shape[1]
+    scan order. `dists` is scratch space of at least grid[2] float64."""
     best = -1
     best_dist = np.inf
     for o0 in range(window[0]):
-        a0 = origin[0] + o0
-        if a0 >= grid[0]:
-            a0 -= grid[0]
+        a0 = _wrap_index(origin[0] + o0, grid[0])
         for o1 in range(window[1]):
-            a1 = origin[1] + o1
-            if a1 >= grid[1]:
-                a1 -= grid[1]
-            base = (a0 * grid[1] + a1) * grid[2]
-            for o2 in range(window[2]):
-                a2 = origin[2] + o2
-                if a2 >= grid[2]:
-                    a2 -= grid[2]
-                i = base + a2
-                dist = 0.0
-                for k in range(d):
-                    diff = _wrapped_diff(x[k] - weights[i, k], periods[k])
-                    dist += diff * diff
-                    if dist >= best_dist:
-                        break
-                if dist < best_dist:
-                    best_dist = dist
-                    best = i
+            base = (a0 * grid[1] + _wrap_index(origin[1] + o1, grid[1])) * grid[2]
+            # the row as one or two contiguous runs of node indices
+            start = 0
+            while start < window[2]:
+                a2, stop = _run(origin[2], start, window[2] - 1, grid[2])
+                i0 = base + a2
+                _run_dists(weights, i0, stop - start + 1, x, periods, dists)
+                for j in range(stop - start + 1):
+                    if dists[j] < best_dist:
+                        best_dist = dists[j]
+                        best = i0 + j
+                start = stop + 1
     return best
 
 
-@njit(cache=True, inline="always")
+# ----------------------------------------------------------------------------- inverse map
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _cell_index(value, origin, inv_size, cells):
+    """Cell of a data value along one bucket axis (clamped: the end cells reach infinity)."""
+    return np.int64(min(max((value - origin) * inv_size, 0.0), cells - 1.0))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _bucket_of(weights, i, comps, shape, origin, inv_size):
+    """The cell node i's model vector falls in."""
+    cell = 0
+    for a in range(3):
+        c = 0
+        if comps[a] >= 0:
+            c = _cell_index(weights[i, comps[a]], origin[a], inv_size[a], shape[a])
+        cell = cell * shape[a] + c
+    return cell
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _bucket_link(head, links, i, cell):
+    first = head[cell]
+    links[0, i] = first
+    links[1, i] = -1
+    if first >= 0:
+        links[1, first] = i
+    head[cell] = i
+    links[2, i] = cell
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _bucket_move(head, links, i, cell):
+    """Refile node i under `cell` if it is not there already."""
+    old = links[2, i]
+    if cell == old:
+        return
+    nxt = links[0, i]
+    prv = links[1, i]
+    if prv >= 0:
+        links[0, prv] = nxt
+    else:
+        head[old] = nxt
+    if nxt >= 0:
+        links[1, nxt] = prv
+    _bucket_link(head, links, i, cell)
+
+
+@njit(cache=True, error_model="numpy")
+def fill_buckets(weights, b):
+    """File every node under its cell (b's head and links are overwritten)."""
+    b.head[:] = -1
+    for i in range(weights.shape[0]):
+        cell = _bucket_of(weights, i, b.comps, b.shape, b.origin, b.inv_size)
+        _bucket_link(b.head, b.links, i, cell)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _scan_rank(i, grid, origin, window):
+    """Position of node i in the window's scan order, -1 if i is outside the window."""
+    a0 = i // (grid[1] * grid[2])
+    a1 = (i // grid[2]) % grid[1]
+    a2 = i % grid[2]
+    coords = (a0, a1, a2)
+    rank = 0
+    for a in range(3):
+        r = coords[a] - origin[a]
+        if r < 0:
+            r += grid[a]  # only reachable in range on wrapped axes (origin < grid elsewhere)
+        if r >= window[a]:
+            return -1
+        rank = rank * window[a] + r
+    return rank
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _axis_cell(x, comp, corner, inv_size, cells):
+    """Cell of x along one bucket axis (0 on an unused axis)."""
+    if comp < 0:
+        return 0
+    return _cell_index(x[comp], corner, inv_size, cells)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _axis_gap(x, comp, c, cells, corner, size):
+    """Squared distance from x to cell c along one bucket axis (the end cells reach infinity)."""
+    if comp < 0:
+        return 0.0
+    xa = x[comp]
+    if c > 0:
+        e = corner + c * size - xa
+        if e > 0.0:
+            return e * e
+    if c < cells - 1:
+        e = xa - corner - (c + 1) * size
+        if e > 0.0:
+            return e * e
+    return 0.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _ring_bound(x, comp, c, r, cells, corner, size):
+    """Nearest that cells r steps from cell c along one axis can be to x (inf: none exist)."""
+    if comp < 0:
+        return np.inf
+    if r == 0:
+        return 0.0
+    bound = np.inf
+    if c + r <= cells - 1:
+        bound = corner + (c + r) * size - x[comp]
+    if c - r >= 0:
+        bound = min(bound, x[comp] - corner - (c - r + 1) * size)
+    return bound
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _scan_cell(weights, x, cell, head, links, grid, origin, window, whole, periods, best,
+               best_dist, best_rank):
+    """Fold the nodes filed under `cell` into the running (distance, scan rank) minimum.
+
+    A whole-map window (`whole`) contains every node, so the rank (integer divisions) is only
+    needed to break ties; -1 stands for "not computed yet"."""
+    i = head[cell]
+    while i >= 0:
+        dist = _node_dist(weights, i, x, periods)
+        if dist < best_dist:
+            rank = -1 if whole else _scan_rank(i, grid, origin, window)
+            if whole or rank >= 0:
+                best, best_dist, best_rank = i, dist, rank
+        elif dist == best_dist:
+            rank = _scan_rank(i, grid, origin, window)
+            if best_rank < 0:
+                best_rank = _scan_rank(best, grid, origin, window)
+            if rank >= 0 and rank < best_rank:
+                best, best_rank = i, rank
+        i = links[0, i]
+    return best, best_dist, best_rank
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def find_winner_buckets(weights, x, grid, origin, window, periods, b):
+    """`find_winner` through the inverse map b: the same node (ties: first in scan order).
+
+    Rings of cells at Chebyshev distance r = 0, 1, ... around x's cell are searched until no
+    cell of the next ring can hold a node as near as the best; cells farther than the best are
+    skipped without reading them.
+    """
+    comps, shape, corner, size, inv = b.comps, b.shape, b.origin, b.size, b.inv_size
+    head, links = b.head, b.links
+    k0, k1, k2 = comps[0], comps[1], comps[2]
+    s0, s1, s2 = shape[0], shape[1], shape[2]
+    cx0 = _axis_cell(x, k0, corner[0], inv[0], s0)
+    cx1 = _axis_cell(x, k1, corner[1], inv[1], s1)
+    cx2 = _axis_cell(x, k2, corner[2], inv[2], s2)
+    margin = 1e-9 * (size[0] + size[1] + size[2])  # rounding in cell assignment and distances
+    whole = window[0] == grid[0] and window[1] == grid[1] and window[2] == grid[2]
+    best, best_dist, best_rank = -1, np.inf, -1
+    r = 0
+    while True:
+        bound = min(_ring_bound(x, k0, cx0, r, s0, corner[0], size[0]),
+                    _ring_bound(x, k1, cx1, r, s1, corner[1], size[1]),
+                    _ring_bound(x, k2, cx2, r, s2, corner[2], size[2]))
+        if bound == np.inf:
+            break  # every cell visited
+        bound = max(bound - margin, 0.0)
+        if bound * bound > best_dist:
+            break
+        for c0 in range(max(cx0 - r, 0), min(cx0 + r, s0 - 1) + 1):
+            g0 = _axis_gap(x, k0, c0, s0, corner[0], size[0])
+            face0 = abs(c0 - cx0) == r  # r == 0: the single cell cx, a "face" too
+            for c1 in range(max(cx1 - r, 0), min(cx1 + r, s1 - 1) + 1):
+                g01 = g0 + _axis_gap(x, k1, c1, s1, corner[1], size[1])
+                base = (c0 * s1 + c1) * s2
+                # the whole row of the ring's box, or only its two end cells along axis 2
+                step = 1 if face0 or abs(c1 - cx1) == r else 2 * r
+                for c2 in range(cx2 - r, cx2 + r + 1, step):
+                    if c2 < 0 or c2 >= s2:
+                        continue
+                    gap = max(np.sqrt(g01 + _axis_gap(x, k2, c2, s2, corner[2], size[2]))
+                              - margin, 0.0)
+                    if gap * gap > best_dist:
+                        continue  # no node of this cell can win (or tie)
+                    best, best_dist, best_rank = _scan_cell(
+                        weights, x, base + c2, head, links, grid, origin, window, whole,
+                        periods, best, best_dist, best_rank)
+        r += 1
+    return best
+
+
+# ----------------------------------------------------------------------------- the update
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _row_hmax(row_q, tables, j):
+    """Largest component weight at axis-2 table position j of a row (separable path)."""
+    hmax = 0.0
+    for k in range(row_q.shape[0]):
+        hmax = max(hmax, row_q[k] * tables[k, 2, j])
+    return hmax
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _axis_range(c, radius, g, wrap):
     """Offsets [lo, hi] of the update box along one axis around winner coordinate c."""
     if wrap:
@@ -86,12 +356,14 @@ def _axis_range(c, radius, g, wrap):
     return max(-radius, -c), min(radius, g - 1 - c)
 
 
-@njit(cache=True)
-def update_neighbourhood(weights, c, x, alpha, sigma, p, tables):
+@njit(cache=True, inline="always", error_model="numpy")
+def update_neighbourhood(weights, c, x, alpha, sigma, p, tables, scratch, bounds, b, refile):
     """m_i += h_ci (target_i - m_i) for the nodes around winner c (one OS-Map step, eq. 1-4).
 
     h_ci is diagonal: component k uses exp(-D^T A_k D / (2 sigma^2)), times the optional range
-    kernel. `tables` is scratch space of shape (d, 3, L) for the separable path.
+    kernel. `tables` (d, 3, L) holds the separable path's 1D factors; `scratch` (5, d) float64
+    and `bounds` (2, 3) int64 are work space. With `refile`, moved nodes are refiled in the
+    inverse map b.
     """
     grid = p.grid
     d = weights.shape[1]
@@ -103,8 +375,8 @@ def update_neighbourhood(weights, c, x, alpha, sigma, p, tables):
     coords = (c0, c1, c2)
     inv2s2 = 1.0 / (2.0 * sigma * sigma)
 
-    lo = np.empty(3, np.int64)
-    hi = np.empty(3, np.int64)
+    lo = bounds[0]
+    hi = bounds[1]
     for a in range(3):
         e = p.extent[frame, a] * sigma
         radius = grid[a] if not np.isfinite(e) or e >= grid[a] else np.int64(np.ceil(e))
@@ -114,97 +386,127 @@ def update_neighbourhood(weights, c, x, alpha, sigma, p, tables):
         for k in range(d):
             for a in range(3):
                 caa = quad[k, a, a]
+                if k > 0 and caa == quad[k - 1, a, a]:
+                    tables[k, a, :hi[a] - lo[a] + 1] = tables[k - 1, a, :hi[a] - lo[a] + 1]
+                    continue  # same factor as the previous component (e.g. isotropic maps)
                 for off in range(lo[a], hi[a] + 1):
                     tables[k, a, off - lo[a]] = np.exp(-caa * off * off * inv2s2)
 
+    jac, periods, t_lo, t_hi, cutoff = p.jac, p.periods, p.lo, p.hi, p.cutoff
+    separable = p.separable
+    comps, bshape, corner, inv_size, head, links = (b.comps, b.shape, b.origin, b.inv_size,
+                                                     b.head, b.links)
     use_range = p.range_a > 0.0 or p.range_b > 0.0
     tau = p.range_a * sigma + p.range_b
     inv2t2 = 1.0 / (2.0 * tau * tau) if use_range else 0.0
-    floor_w = p.cutoff
-    target = np.empty(d)
-    h = np.empty(d)
-    dvec = np.empty(3)
+    periodic = False
+    bounded = False
+    for k in range(d):
+        periodic = periodic or periods[k] > 0.0
+        bounded = bounded or t_lo[k] > -np.inf or t_hi[k] < np.inf
+    target, h, row_t, row_q, row_b = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4]
 
     for o0 in range(lo[0], hi[0] + 1):
-        a0 = c0 + o0
-        if a0 < 0:
-            a0 += grid[0]
-        elif a0 >= grid[0]:
-            a0 -= grid[0]
-        dvec[0] = o0
+        a0 = _wrap_index(c0 + o0, grid[0])
         for o1 in range(lo[1], hi[1] + 1):
-            a1 = c1 + o1
-            if a1 < 0:
-                a1 += grid[1]
-            elif a1 >= grid[1]:
-                a1 -= grid[1]
-            dvec[1] = o1
-            base = (a0 * grid[1] + a1) * grid[2]
-            for o2 in range(lo[2], hi[2] + 1):
-                a2 = c2 + o2
-                if a2 < 0:
-                    a2 += grid[2]
-                elif a2 >= grid[2]:
-                    a2 -= grid[2]
-                dvec[2] = o2
-                i = base + a2
-
-                inside = True
-                for k in range(d):
-                    t = x[k] + p.jac[k, 0] * o0 + p.jac[k, 1] * o1 + p.jac[k, 2] * o2
-                    if t < p.lo[k] or t > p.hi[k]:
-                        inside = False
-                        break
-                    target[k] = t
-                if not inside:
-                    continue
-
-                hmax = 0.0
-                for k in range(d):
-                    if p.separable:
-                        w = (tables[k, 0, o0 - lo[0]] * tables[k, 1, o1 - lo[1]]
-                             * tables[k, 2, o2 - lo[2]])
-                    else:
-                        q = 0.0
-                        for a in range(3):
-                            for b in range(3):
-                                q += dvec[a] * quad[k, a, b] * dvec[b]
-                        w = np.exp(-q * inv2s2)
-                    h[k] = w
-                    hmax = max(hmax, w)
-                if hmax < floor_w:
-                    continue
-
-                if use_range:
-                    dist2 = 0.0
-                    for k in range(d):
-                        diff = _wrapped_diff(target[k] - weights[i, k], p.periods[k])
-                        dist2 += diff * diff
-                    r = np.exp(-dist2 * inv2t2)
+            base = (a0 * grid[1] + _wrap_index(c1 + o1, grid[1])) * grid[2]
+            # per row: targets, and the neighbourhood exponent as a polynomial in o2
+            row_max = 0.0
+            for k in range(d):
+                row_t[k] = x[k] + jac[k, 0] * o0 + jac[k, 1] * o1
+                if separable:
+                    row_q[k] = tables[k, 0, o0 - lo[0]] * tables[k, 1, o1 - lo[1]]
+                    row_max = max(row_max, row_q[k])
                 else:
-                    r = 1.0
+                    row_q[k] = (quad[k, 0, 0] * o0 * o0 + 2.0 * quad[k, 0, 1] * o0 * o1
+                                + quad[k, 1, 1] * o1 * o1) * inv2s2
+                    row_b[k] = 2.0 * (quad[k, 0, 2] * o0 + quad[k, 1, 2] * o1) * inv2s2
+                    row_max = 1.0
+            if row_max < cutoff:
+                continue  # axis-2 factors are <= 1: the whole row is below the cutoff
+            first, last = lo[2], hi[2]
+            if separable:
+                # the row's weights fall off symmetrically from o2 = 0: trim the ends below the
+                # cutoff here instead of testing every node (same products, same decisions)
+                while first <= last and _row_hmax(row_q, tables, first - lo[2]) < cutoff:
+                    first += 1
+                while last >= first and _row_hmax(row_q, tables, last - lo[2]) < cutoff:
+                    last -= 1
+            # the row's nodes as one or two contiguous runs of indices (i = shift + o2)
+            start = first
+            while start <= last:
+                a2, stop = _run(c2, start, last, grid[2])
+                shift = base + a2 - start
+                for o2 in range(start, stop + 1):
+                    i = shift + o2
+                    inside = True
+                    for k in range(d):
+                        t = row_t[k] + jac[k, 2] * o2
+                        if bounded and (t < t_lo[k] or t > t_hi[k]):
+                            inside = False
+                        target[k] = t
+                    if not inside:
+                        continue
 
-                for k in range(d):
-                    diff = _wrapped_diff(target[k] - weights[i, k], p.periods[k])
-                    m = weights[i, k] + alpha * h[k] * r * diff
-                    if p.periods[k] > 0.0:
-                        m -= p.periods[k] * np.floor(m / p.periods[k])
-                    weights[i, k] = m
+                    if separable:
+                        for k in range(d):
+                            h[k] = row_q[k] * tables[k, 2, o2 - lo[2]]
+                    else:
+                        hmax = 0.0
+                        for k in range(d):
+                            w = np.exp(-(row_q[k] + (row_b[k] + quad[k, 2, 2] * o2 * inv2s2) * o2))
+                            h[k] = w
+                            hmax = max(hmax, w)
+                        if hmax < cutoff:
+                            continue
+
+                    r = alpha
+                    if use_range:
+                        r *= np.exp(-_node_dist(weights, i, target, periods) * inv2t2)
+
+                    for k in range(d):
+                        wik = weights[i, k]
+                        if periodic:
+                            m = wik + r * h[k] * _wrapped_diff(target[k] - wik, periods[k])
+                            if periods[k] > 0.0:
+                                m -= periods[k] * np.floor(m / periods[k])
+                        else:
+                            m = wik + r * h[k] * (target[k] - wik)
+                        weights[i, k] = m
+                    if refile:
+                        cell = _bucket_of(weights, i, comps, bshape, corner, inv_size)
+                        _bucket_move(head, links, i, cell)
+                start = stop + 1
 
 
-@njit(cache=True)
-def train_steps(weights, inputs, origins, alphas, sigmas, p):
+@njit(cache=True, error_model="numpy")
+def train_steps(weights, inputs, origins, alphas, sigmas, p, b, bucket_from):
     """Run len(inputs) OS-Map steps in place: winner in the window at origins[t], then update.
 
     weights float32[N, d]; inputs float64[T, d]; origins int64[T, 3]; alphas, sigmas float64[T].
-    Returns the winners (int64[T]) for diagnostics.
+    Steps t < bucket_from scan the window; from step bucket_from on (when b is active) the
+    inverse map b is filled and searched instead, which finds the same winners: the switch
+    only changes the speed (scanning is cheaper while the updates are wide and the map moves a
+    lot, the inverse map once the radius has shrunk). Returns the winners (int64[T]).
     """
+    d = weights.shape[1]
     max_len = 2 * max(p.grid[0], p.grid[1], p.grid[2]) + 1
-    tables = np.empty((weights.shape[1], 3, max_len))
+    tables = np.empty((d, 3, max_len))
+    scratch = np.empty((5, d))
+    dists = np.empty(p.grid[2])
+    bounds = np.empty((2, 3), np.int64)
     winners = np.empty(inputs.shape[0], np.int64)
+    use = False
     for t in range(inputs.shape[0]):
+        if b.active and t == bucket_from:
+            fill_buckets(weights, b)
+            use = True
         x = inputs[t]
-        c = find_winner(weights, x, p.grid, p.wrap, origins[t], p.window, p.periods)
+        if use:
+            c = find_winner_buckets(weights, x, p.grid, origins[t], p.window, p.periods, b)
+        else:
+            c = find_winner(weights, x, p.grid, origins[t], p.window, p.periods, dists)
         winners[t] = c
-        update_neighbourhood(weights, c, x, alphas[t], sigmas[t], p, tables)
+        update_neighbourhood(weights, c, x, alphas[t], sigmas[t], p, tables, scratch, bounds, b,
+                             use)
     return winners

@@ -15,9 +15,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from osmap_kernels.som import KernelParams, find_winner, train_steps
+from osmap_kernels.som import Buckets, KernelParams, fill_buckets, find_winner, train_steps
 
 PHI = -2.5  # the paper's schedule constant
+# Cost model of one step for choosing the winner search (seconds; fitted by the "winner search
+# against window size" table of bench/bench_kernels.py, only their ratios matter): scanning
+# costs SCAN_COST per window node and data component; the inverse map costs SEARCH_COST per
+# search, plus MISS_COST per out-of-window node it meets (about map size / window size of
+# them), plus REFILE_COST per updated node to keep the buckets current.
+SCAN_COST = 0.6e-9
+SEARCH_COST = 0.7e-6
+MISS_COST = 25e-9
+REFILE_COST = 18e-9
+NODES_PER_CELL = 4.0
 
 
 @dataclass(frozen=True)
@@ -101,6 +111,13 @@ class Orientation:
         out = np.zeros((f, d, 3, 3))
         out[:, :, 3 - m:, 3 - m:] = a
         return out
+
+
+def _inactive_buckets() -> Buckets:
+    """A placeholder inverse map: brute-force winner search."""
+    return Buckets(active=False, comps=np.full(3, -1, np.int64), shape=np.ones(3, np.int64),
+                   origin=np.zeros(3), inv_size=np.ones(3), size=np.ones(3),
+                   head=np.full(1, -1, np.int64), links=np.empty((3, 0), np.int64))
 
 
 def _truncation_extent(quad: np.ndarray, cutoff: float) -> np.ndarray:
@@ -200,17 +217,24 @@ class OSMap:
     def winner(self, x) -> int:
         """Index of the node nearest to x over the whole map."""
         p = self._params
-        return int(find_winner(self.weights, np.asarray(x, np.float64), p.grid, p.wrap,
-                               np.zeros(3, np.int64), p.grid, p.periods))
+        return int(find_winner(self.weights, np.asarray(x, np.float64), p.grid,
+                               np.zeros(3, np.int64), p.grid, p.periods, np.empty(p.grid[2])))
 
     def train(self, data, steps: int | None = None, *, schedule: Schedule = Schedule(),
-              seed: int = 0, order=None, progress=None, chunk: int = 1 << 15) -> OSMap:
+              seed: int = 0, order=None, progress=None, chunk: int = 1 << 15,
+              search: str = "auto") -> OSMap:
         """Run the stepwise recursive algorithm for `steps` steps.
 
         Inputs are drawn uniformly from `data` (n, dim), or taken in the given `order` (indices),
         windows are placed uniformly at random (seeded). `progress` is an optional tqdm-like
-        object whose update(n) is called after each chunk of steps.
+        object whose update(n) is called after each chunk of steps. `search` picks the winner
+        search: "scan" (brute force over the window), "buckets" (the inverse map; the scan when
+        every component is periodic) or "auto" (the inverse map from the step on which the cost
+        model says it pays: large windows, shrunken radius); all give the same winners, hence
+        the same map.
         """
+        if search not in ("auto", "scan", "buckets"):
+            raise ValueError(f"search must be 'auto', 'scan' or 'buckets', got {search!r}")
         data = np.asarray(data, np.float64).reshape(-1, self.dim)
         rng = np.random.default_rng(seed)
         if order is None:
@@ -223,14 +247,64 @@ class OSMap:
         window = np.array(self._params.window)
         wrap = np.array(self._params.wrap)
         high = np.where(wrap, grid, grid - window + 1)
+        probe = np.unique(np.linspace(0, max(total - 1, 0), 257).astype(np.int64))
+        may_pay = search == "buckets" or (
+            search == "auto" and self._buckets_pay(schedule.values(probe, total)[1]).any())
+        buckets = self._buckets(data) if may_pay else None
+        if buckets is None:
+            buckets = _inactive_buckets()
         for start in range(0, total, chunk):
             idx = order[start:start + chunk]
             origins = (rng.random((len(idx), 3)) * high).astype(np.int64)
             alphas, sigmas = schedule.values(np.arange(start, start + len(idx)), total)
-            train_steps(self.weights, data[idx], origins, alphas, sigmas, self._params)
+            pays = (np.ones(len(idx), bool) if search == "buckets"
+                    else self._buckets_pay(sigmas))
+            # the inverse map from the first step after which it pays for every step
+            bucket_from = len(idx) - int(np.argmin(pays[::-1])) if not pays.all() else 0
+            train_steps(self.weights, data[idx], origins, alphas, sigmas, self._params, buckets,
+                        bucket_from)
             if progress is not None:
                 progress.update(len(idx))
         return self
+
+    def _buckets_pay(self, sigmas: np.ndarray) -> np.ndarray:
+        """Per step (radius sigma): is the inverse map cheaper than scanning the window?"""
+        window = float(np.prod(self.window))
+        p = self._params
+        updated = np.ones(len(sigmas))
+        for a in range(3):
+            reach = 2.0 * np.ceil(p.extent[:, a].max() * sigmas) + 1.0
+            updated *= np.minimum(reach, p.grid[a])
+        scan = SCAN_COST * window * self.dim
+        search = SEARCH_COST + MISS_COST * self.size / window
+        return scan > search + REFILE_COST * updated
+
+    def _buckets(self, data: np.ndarray) -> Buckets | None:
+        """An inverse map over up to 3 non-periodic components (the widest spread first), with
+        about NODES_PER_CELL nodes per cell; None when no component qualifies."""
+        both = np.concatenate([data, self.weights.astype(np.float64)])
+        lo, hi = both.min(axis=0), both.max(axis=0)
+        spread = np.where(self.periods > 0, 0.0, hi - lo)
+        comps = [int(k) for k in np.argsort(-spread, kind="stable")[:3] if spread[k] > 0]
+        if not comps:
+            return None
+        cells = max(1.0, self.size / NODES_PER_CELL)
+        size = float(np.prod(spread[comps]) / cells) ** (1.0 / len(comps))
+        shape = np.ones(3, np.int64)
+        comp_arr = np.full(3, -1, np.int64)
+        origin = np.zeros(3)
+        sizes = np.ones(3)
+        for a, k in enumerate(comps):
+            shape[a] = int(np.clip(np.ceil(spread[k] / size), 1, 4096))
+            sizes[a] = spread[k] / shape[a]
+            comp_arr[a] = k
+            origin[a] = lo[k]
+        n = self.size
+        b = Buckets(active=True, comps=comp_arr, shape=shape, origin=origin, inv_size=1.0 / sizes,
+                    size=sizes, head=np.empty(int(np.prod(shape)), np.int64),
+                    links=np.empty((3, n), np.int64))
+        fill_buckets(self.weights, b)
+        return b
 
     def quantization_error(self, data) -> float:
         """Mean distance from each data item to its nearest model vector."""

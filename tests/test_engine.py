@@ -88,11 +88,13 @@ def test_anisotropic_kernel_orients_the_gradients():
 def test_local_window_restricts_winners():
     data = np.random.default_rng(9).random((100, 2))
     som = OSMap((32, 32), 2, window=(4, 4)).init_random(data, 0)
+    from osmap_cli.engine import _inactive_buckets
     from osmap_kernels.som import train_steps
     p = som._params
     origins = np.array([[0, 10, 20]] * 50, np.int64)
     alphas, sigmas = SCHEDULE.values(np.arange(50), 50)
-    winners = train_steps(som.weights, data[:50], origins, alphas, sigmas, p)
+    winners = train_steps(som.weights, data[:50], origins, alphas, sigmas, p,
+                          _inactive_buckets(), 50)
     rows, cols = np.divmod(winners, 32)
     assert rows.min() >= 10 and rows.max() < 14 and cols.min() >= 20 and cols.max() < 24
 
@@ -135,3 +137,77 @@ def test_invalid_arguments_raise():
         OSMap((8, 8), 2, window=(9, 2))
     with pytest.raises(ValueError):
         OSMap((8, 8), 2, path="fast")
+
+
+@pytest.mark.parametrize("shape,wrap,window,periods", [
+    ((24, 20), (False, False), None, None),             # global window
+    ((24, 20), (True, True), (9, 7), None),             # local windows wrapping around
+    ((6, 7, 8), (False, True, False), (4, 7, 5), None),  # 3D map
+    ((30,), (True,), (12,), [0.0, 0.0, 1.0]),           # a periodic component stays off-grid
+])
+def test_bucket_search_finds_the_scan_winner(shape, wrap, window, periods):
+    """The inverse map returns exactly the brute-force winner, ties included (model vectors on a
+    coarse lattice make equal distances common), so training gives identical maps."""
+    from osmap_cli.engine import _inactive_buckets
+    from osmap_kernels.som import find_winner, find_winner_buckets
+
+    rng = np.random.default_rng(11)
+    data = np.round(rng.random((600, 3)) * 4) / 4
+    som = OSMap(shape, 3, wrap=wrap, window=window, periods=periods).init_random(data, 0)
+    p = som._params
+    b = som._buckets(data)
+    assert b.active and not _inactive_buckets().active
+    queries = np.concatenate([data[:300], rng.random((200, 3)) * 1.6 - 0.3])  # some outside
+    high = np.where(p.wrap, p.grid, p.grid - p.window + 1)
+    for x in queries:
+        origin = (rng.random(3) * high).astype(np.int64)
+        expected = find_winner(som.weights, x, p.grid, origin, p.window, p.periods,
+                               np.empty(p.grid[2]))
+        assert find_winner_buckets(som.weights, x, p.grid, origin, p.window, p.periods,
+                                   b) == expected
+
+    maps = []
+    for search in ("scan", "buckets"):
+        m = OSMap(shape, 3, wrap=wrap, window=window, periods=periods).init_random(data, 0)
+        maps.append(m.train(data, 3000, schedule=SCHEDULE, seed=4, search=search).weights)
+    assert np.array_equal(maps[0], maps[1])
+
+
+def test_bucket_search_with_coherent_targets_matches_scan():
+    """The texture configuration (coherent targets, bounds, range kernel, rotated kernel)."""
+    pos = np.stack(np.meshgrid(np.arange(20.0), np.arange(20.0), indexing="ij"), -1)
+    pos = pos.reshape(-1, 2)
+    maps = []
+    for search in ("scan", "buckets"):
+        som = OSMap((24, 24), 2, window=(16, 16), target_jacobian=[[0.9, 0.2], [-0.2, 0.9]],
+                    orientation=Orientation.angles([0.3, 1.2], [[1, 0.25]] * 2),
+                    range_kernel=(2, 1), bounds=[[0, 19], [0, 19]]).init_random(pos, 0)
+        maps.append(som.train(pos, 4000, schedule=SCHEDULE, seed=3, search=search).weights)
+    assert np.array_equal(maps[0], maps[1])
+
+
+def test_switching_to_the_inverse_map_mid_run_changes_nothing():
+    """train_steps scans until step bucket_from, then fills and searches the inverse map."""
+    from osmap_kernels.som import train_steps
+
+    rng = np.random.default_rng(12)
+    data = rng.random((500, 2))
+    xs = data[rng.integers(0, len(data), 2000)]
+    origins = np.zeros((len(xs), 3), np.int64)
+    alphas, sigmas = SCHEDULE.values(np.arange(len(xs)), len(xs))
+    results = []
+    for bucket_from in (len(xs), 0, 700):
+        som = OSMap((20, 20), 2).init_random(data, 0)
+        winners = train_steps(som.weights, xs, origins, alphas, sigmas, som._params,
+                              som._buckets(data), bucket_from)
+        results.append((winners, som.weights.copy()))
+    for winners, weights in results[1:]:
+        assert np.array_equal(winners, results[0][0])
+        assert np.array_equal(weights, results[0][1])
+
+
+def test_auto_search_switches_once_the_radius_has_shrunk():
+    som = OSMap((128, 128), 2)
+    pays = som._buckets_pay(np.array([30.0, 8.0, 0.5]))
+    assert not pays[0] and pays[-1]
+    assert not OSMap((128, 128), 2, window=(8, 8))._buckets_pay(np.array([0.5]))[0]
