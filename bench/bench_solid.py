@@ -1,0 +1,121 @@
+"""Solid benchmark: timings of `synthesize_solid` (64^3 and 128^3 from a 128 px exemplar) and
+the quality table from texmetrics.py on the solid development exemplars.
+
+`run(quick=False) -> str` returns the Markdown section "## Solid" (bench/run.py includes it).
+Exemplars come from ../shared/exemplars/small (never copied into the repository); 64 px
+exemplars are those downscaled by OpenImageIO. Quality runs texmetrics.py in its own venv.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+SHARED = REPO.parent / "shared"
+EXEMPLARS = SHARED / "exemplars" / "small"
+TEXMETRICS = SHARED / "tools" / "texmetrics.py"
+TEXMETRICS_PY = Path(os.environ.get("TEXMETRICS_PYTHON", "/tmp/texmetrics-venv/bin/python"))
+NAMES = ("terrazzo_granite", "marble_swirl_green", "wood_planks_horizontal",
+         "gravel_green_stones")
+
+
+def _exemplar(name: str, side: int) -> np.ndarray:
+    from osmap_cli.imageio import read_image
+    from osmap_cli.synth.pyramid import resize
+
+    image = read_image(EXEMPLARS / f"{name}.png").pixels
+    return image if image.shape[0] == side else resize(image, side, side)
+
+
+def _time(exemplar, side: int, runs: int, seed: int = 1):
+    from osmap_cli.solid import SolidOptions, synthesize_solid
+
+    options = SolidOptions(width=side, height=side, depth=side, seed=seed)
+    walls, cpus = [], []
+    for _ in range(runs):
+        wall, cpu = time.perf_counter(), time.process_time()
+        result = synthesize_solid([exemplar], options)
+        walls.append(time.perf_counter() - wall)
+        cpus.append(time.process_time() - cpu)
+    return walls, cpus, result
+
+
+def _metrics(exemplar_path: Path, volume_path: Path) -> dict:
+    out = subprocess.run([str(TEXMETRICS_PY), str(TEXMETRICS), str(exemplar_path),
+                          str(volume_path), "--json"], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout)
+
+
+def _synth_2d(exemplar_path: Path, side: int, folder: Path) -> dict:
+    out = folder / f"2d_{exemplar_path.stem}.png"
+    subprocess.run([sys.executable, "-m", "osmap_cli.cli", "synth", str(exemplar_path), "-o",
+                    str(out), "--size", str(side), "--seed", "1", "-q"], check=True)
+    return _metrics(exemplar_path, out)
+
+
+def _worst(report: dict) -> dict:
+    return report.get("worst") or report["2d"]
+
+
+def run(quick: bool = False) -> str:
+    """The Markdown section "## Solid"."""
+    from osmap_cli.imageio import write_image
+    from osmap_cli.solid.preview import render_preview
+
+    lines = ["## Solid", ""]
+    threads = os.environ.get("NUMBA_NUM_THREADS", str(os.cpu_count()))
+    ex128 = _exemplar("marble_swirl_green", 128)
+    _time(ex128, 16, 1)  # compile
+    rows = []
+    for side, runs in ((64, 1 if quick else 5), (128, 1 if quick else 2)):
+        walls, cpus, _ = _time(ex128, side, runs)
+        rows.append(f"| {side}^3 | {runs} | {statistics.median(walls):.1f} | {min(walls):.1f} | "
+                    f"{max(walls):.1f} | {statistics.median(cpus):.1f} |")
+    lines += [f"Timing: marble_swirl_green (128 px) -> N^3, seed 1, default options, "
+              f"NUMBA_NUM_THREADS={threads}; seconds.", "",
+              "| volume | runs | median wall | min | max | median CPU |",
+              "|---|---|---|---|---|---|", *rows, ""]
+
+    if not TEXMETRICS_PY.exists():
+        return "\n".join(lines + ["(texmetrics venv missing: no quality table)", ""])
+    table = ["| exemplar | px -> volume | worst coh_mean | 2D synth coh_mean | ratio | "
+             "worst coh_p95 | worst compl | worst hist | worst scale | s |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    sizes = ((64, 64),) if quick else ((64, 64), (128, 128))
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        for name in NAMES:
+            for ex_side, side in sizes:
+                exemplar = _exemplar(name, ex_side)
+                ex_path = folder / f"{name}_{ex_side}.png"
+                write_image(ex_path, exemplar, 8)
+                walls, _, result = _time(exemplar, side, 1)
+                vol_path = folder / f"{name}_{side}.npy"
+                np.save(vol_path, result.voxels)
+                worst = _worst(_metrics(ex_path, vol_path))
+                flat = _worst(_synth_2d(ex_path, 2 * ex_side, folder))
+                ratio = worst["coh_mean"] / flat["coh_mean"]
+                table.append(
+                    f"| {name} | {ex_side} -> {side}^3 | {worst['coh_mean']:.2f} | "
+                    f"{flat['coh_mean']:.2f} | {ratio:.2f} | {worst['coh_p95']:.2f} | "
+                    f"{worst['compl']:.2f} | {worst['hist']:.2f} | {worst['scale']:.2f} | "
+                    f"{walls[0]:.1f} |")
+                if side == 64 or quick:
+                    write_image(REPO / "docs" / f"solid_{name}.png",
+                                render_preview(result.voxels), 8)
+    lines += ["Quality (texmetrics.py, worst of the three slice axes; 2D: `osmap synth` on the "
+              "same exemplar at twice its size, same seed):", "", *table, ""]
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    print(run(quick="--quick" in sys.argv))
