@@ -21,7 +21,6 @@ import importlib
 import os
 import re
 import sys
-import time
 
 import click
 
@@ -48,11 +47,14 @@ DEFAULT_ANISOTROPY = 1.0
 # The preset tunables (SynthOptions.tunables()), each also a `osmap synth` flag that overrides the
 # preset: (field name, type, help). The tests check this table against SynthOptions.
 TUNING_FLAGS: tuple[tuple[str, type, str], ...] = (
-    ("levels", int, "pyramid levels"),
+    ("levels", int, "pyramid levels (0: from the exemplar size)"),
     ("patch_radius", int, "matching window half-size, in feature vectors"),
     ("sweeps", int, "coherence sweeps per pyramid level"),
     ("coarse_sweeps", int, "coherence sweeps at the coarsest level"),
     ("occupancy", float, "penalty on over-used exemplar regions"),
+    ("seam", float, "penalty on positions that break their neighbours' copy"),
+    ("max_copy", float, "copy regions wider than this, in output pixels, are broken up (0: off)"),
+    ("blend", int, "seam blending radius when rendering, pixels (0: hard copies)"),
     ("knn", int, "similar-position candidates per pixel (k-coherence)"),
     ("random_candidates", int, "PatchMatch random-search candidates per pixel"),
     ("feature_dims", int, "appearance-space (PCA) dimensions"),
@@ -74,10 +76,28 @@ LAZY_COMMANDS: dict[str, tuple[str, str, str]] = {
         "surface_command",
         "Fit a quad grid (an OS-Map) to a point-sampled surface.",
     ),
+    "solid": (
+        "osmap_cli.solid.command",
+        "solid_command",
+        "Synthesize a solid (3D) texture from a 2D exemplar.",
+    ),
 }
 
+LAZY_COMMANDS.update({
+    "apply": (
+        "osmap_cli.apply",
+        "apply_command",
+        "Render a saved position map (--uv-out) on another aligned map.",
+    ),
+    "info": (
+        "osmap_cli.info",
+        "info_command",
+        "Print the provenance stored in an osmap output.",
+    ),
+})
+
 # The order of `osmap --help`'s command list.
-COMMAND_ORDER = ("synth", "surface", "presets")
+COMMAND_ORDER = ("synth", "solid", "apply", "info", "surface", "presets")
 
 CONTEXT_SETTINGS = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
 
@@ -138,10 +158,15 @@ class OsmapGroup(click.Group):
 Examples:
   osmap synth samples/cells.png -o out/cells.png
   osmap synth samples/brick.png -o out/brick.exr --size 512x256 --preset structured
+  osmap synth samples/*.png --out-dir out/batch --size 128 -j 2
+  osmap synth samples/cells.png -o out/cells.png --uv-out out/cells_uv.exr
+  osmap apply out/cells_uv.exr samples/cells.png -o out/cells_again.png
+  osmap info out/cells.png
   osmap presets
   osmap synth --help
 
-Exit codes: 0 success, 1 error (input, output, runtime), 2 usage error, 130 interrupted.
+Exit codes: 0 success, 1 error (input, output, runtime; a batch: a job failed),
+2 usage error, 130 interrupted.
 """,
 )
 @click.version_option(
@@ -215,6 +240,19 @@ extension of OUTPUT: .png (8/16-bit), .exr (16 = half, 32 = float),
 the exemplar's channels and their names.
 
 \b
+Batches: give several exemplars (or "-" to read paths from stdin, one per
+line) with --out-dir DIR; each output is named by --name TEMPLATE
+(default "{stem}.{ext}"). Template fields: {stem} exemplar name without
+extension, {name} with extension, {ext} its extension (no dot), {parent}
+name of its folder, {index} 1-based position in the list, {width},
+{height}, {seed}, {preset}, {quality}; Python format specs work
+({index:03d}). A failing exemplar does not stop the others: one error line
+each, a summary at the end, exit 1. In --out-dir mode an existing output
+is kept (the job is reported "skipped", not a failure) unless --overwrite;
+-o always replaces the one file it names. An output that would replace an
+input (exemplar, --with map or field) is always refused.
+
+\b
 Option precedence, lowest to highest: built-in defaults, the --preset,
 tuning flags given here (--levels, --sweeps, ...); --quality then scales
 the work (fast: about half the sweeps; high: more sweeps and candidates).
@@ -223,11 +261,25 @@ the work (fast: about half the sweeps; high: more sweeps and candidates).
 --uv-out writes, for every output pixel, the exemplar position it was
 copied from: a 2-channel float EXR, channel "u" = exemplar column (x) and
 "v" = exemplar row (y), in exemplar pixels, (0, 0) = centre of the
-top-left exemplar pixel.
+top-left exemplar pixel. 'osmap apply' renders it on any aligned map.
+
+\b
+Control fields (docs/fields.md): --orientation-field is added to
+--orientation per pixel: a gray image (8/16-bit: 0..1 = 0..360 degrees
+counter-clockwise; float EXR/TIFF: degrees) or a vector image (R = x
+right, G = y up; 8/16-bit: 2v-1). --scale-field multiplies --scale per
+pixel: a gray image (8/16-bit: 0..1 = 0.5..2 as 2^(2v-1), mid gray = 1;
+float: the factor itself). Fields of any size are resized to the output.
 
 Same inputs, options and seed give the same output, whatever the number of
-threads (NUMBA_NUM_THREADS), byte for byte in every format. Outputs are
-written atomically: on any error nothing is written.
+threads (NUMBA_NUM_THREADS) or -j, byte for byte in every format. Outputs
+are written atomically: on any error nothing is written for that job.
+Every output records its provenance; 'osmap info FILE' prints it with the
+command line that writes the same bytes again.
+
+\b
+Exit codes: 0 every job written or skipped, 1 a job failed (bad input,
+unwritable output, runtime failure), 2 usage error, 130 interrupted.
 """
 
 SYNTH_EPILOG = """\b
@@ -240,28 +292,43 @@ Examples:
   osmap synth samples/cells_rgba.png -o out/cells.exr --bit-depth 32 --uv-out out/cells_uv.exr
   osmap synth samples/brick.png -o out/brick_paper.png --method paper --size 128
   osmap synth samples/cells.png -o out/cells.png --preset my_preset.toml --levels 3
+  osmap synth samples/*.png --out-dir out/batch --name '{stem}_{width}x{height}.png' -j 2
+  ls samples/*.png | osmap synth - --out-dir out/batch --json --size 128 > jobs.jsonl
+  osmap synth rock.png -o out/rock.png --with normal=rock_normal.png --with rock_rough.png
+  osmap synth samples/weave.png -o out/weave_knot.png --orientation-field knot.png
 """
 
 
 @cli.command("synth", help=SYNTH_HELP, epilog=SYNTH_EPILOG, short_help="Synthesize a texture.")
-@click.argument("exemplar", type=click.Path(path_type=str), metavar="EXEMPLAR")
+@click.argument("exemplars", nargs=-1, required=True, type=click.Path(path_type=str),
+                metavar="EXEMPLAR...")
 @click.option(
     "-o",
     "--output",
     "output",
-    required=True,
+    default=None,
     type=click.Path(path_type=str),
     metavar="OUTPUT",
-    help="Output image; the extension (.png .exr .tif .tiff .jpg .jpeg) picks the format. "
-    "An existing file is replaced (atomically).",
+    help="Output image (one exemplar); the extension (.png .exr .tif .tiff .jpg .jpeg) picks "
+    "the format. An existing file is replaced (atomically).",
 )
-@click.option(
-    "--size",
-    type=SizeType(),
-    default=str(DEFAULT_SIZE),
-    show_default=True,
-    help="Output size in pixels: WxH (e.g. 512x256) or N for NxN.",
-)
+@click.option("--out-dir", type=click.Path(path_type=str), default=None, metavar="DIR",
+              help="Write each exemplar's output into DIR (created if missing), named by "
+              "--name; an existing output is kept unless --overwrite.")
+@click.option("--name", "name_template", default=None, metavar="TEMPLATE",
+              help="Output file name in --out-dir (fields above). [default: {stem}.{ext}]")
+@click.option("-j", "--jobs", type=click.IntRange(1, 256), default=1, show_default=True,
+              metavar="N", help="Worker processes running jobs at once (Numba threads split "
+              "between them); outputs are the same bytes for any N.")
+@click.option("--fail-fast", is_flag=True, help="Stop at the first failed job (running jobs "
+              "finish; the rest are not started).")
+@click.option("--json", "json_lines", is_flag=True, help="Print one JSON object per finished "
+              "job on stdout (input, outputs, size, seed, options, seconds, status) and "
+              "nothing else there.")
+@click.option("--overwrite", is_flag=True, help="In --out-dir mode, replace existing outputs "
+              "instead of skipping the job.")
+@click.option("--size", type=SizeType(), default=str(DEFAULT_SIZE), show_default=True,
+              help="Output size in pixels: WxH (e.g. 512x256) or N for NxN.")
 @click.option("--seed", type=int, default=DEFAULT_SEED, show_default=True,
               help="Random seed (a whole number >= 0); the same seed gives the same output.")
 @click.option(
@@ -277,6 +344,12 @@ Examples:
               metavar="DEG", help="Rotate the texture counter-clockwise by DEG degrees.")
 @click.option("--anisotropy", type=float, default=DEFAULT_ANISOTROPY, show_default=True,
               metavar="R", help="Stretch features by R along the (rotated) exemplar x axis.")
+@click.option("--orientation-field", type=click.Path(path_type=str), default=None,
+              metavar="FIELD", help="Image of the texture's direction per output pixel, added "
+              "to --orientation (encoding above).")
+@click.option("--scale-field", type=click.Path(path_type=str), default=None, metavar="FIELD",
+              help="Image of the feature size per output pixel, times --scale (encoding "
+              "above).")
 @click.option("--tileable", is_flag=True,
               help="Make the output wrap around seamlessly (tiles without visible seams).")
 @click.option("--quality", type=click.Choice(QUALITIES), default="default", show_default=True,
@@ -297,24 +370,32 @@ Examples:
     "JPEG 8. [default: the format's default (EXR: 16), but 16 for PNG/TIFF when the "
     "exemplar has 16 bits or more, 32 for TIFF from a float exemplar]",
 )
+@click.option("--with", "with_maps", multiple=True, metavar="[NAME=]MAP",
+              help="An extra map aligned with the exemplar (normal, roughness, ...), rendered "
+              "with the same positions and written as <output stem>_NAME<ext>; NAME defaults "
+              "to MAP's stem, a NAME containing 'normal' keeps unit normals. Repeatable; "
+              "{stem} {name} {dir} in MAP refer to each exemplar.")
 @click.option(
     "--uv-out",
     type=click.Path(path_type=str),
     default=None,
     metavar="FILE.exr",
     help='Also write the exemplar position of every output pixel: float EXR, channels "u" '
-    '(column, x) and "v" (row, y) in exemplar pixels.',
+    '(column, x) and "v" (row, y) in exemplar pixels. With --out-dir: a name template '
+    "(e.g. '{stem}_uv.exr') in DIR.",
 )
 @click.option("-q", "--quiet", is_flag=True,
               help="No progress bar, no summary line, no warnings (errors are still shown).")
 @_tuning_options
-def synth_command(exemplar: str, output: str, size: tuple[int, int], seed: int, preset: str,
-                  scale: float, orientation: float, anisotropy: float, tileable: bool,
-                  quality: str, method: str, bit_depth: str | None, uv_out: str | None,
-                  quiet: bool, **tuning) -> None:
+def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str | None,
+                  name_template: str | None, jobs: int, fail_fast: bool, json_lines: bool,
+                  overwrite: bool, size: tuple[int, int], seed: int, preset: str,
+                  scale: float, orientation: float, anisotropy: float,
+                  orientation_field: str | None, scale_field: str | None, tileable: bool,
+                  quality: str, method: str, bit_depth: str | None,
+                  with_maps: tuple[str, ...], uv_out: str | None, quiet: bool,
+                  **tuning) -> int:
     from osmap_cli.synth.options import SynthOptions
-
-    started = time.monotonic()
 
     # 1. preset and options (no image work yet)
     loaded = _load_preset(preset)
@@ -324,64 +405,155 @@ def synth_command(exemplar: str, output: str, size: tuple[int, int], seed: int, 
          "tileable": tileable, "quality": quality, "method": method},
         tuning,
     )
+    if (orientation_field or scale_field) and method != "osmap":
+        raise click.UsageError("--orientation-field and --scale-field need --method osmap")
 
-    # 2. the exemplar, then the outputs it determines
-    from osmap_cli.imageio import output_format, read_image
+    # 2. the inputs and where their outputs go
+    inputs = _expand_inputs(exemplars)
+    from osmap_cli.materials import parse_with
 
-    image = read_image(exemplar)
-    channels = image.pixels.shape[2]
-    names = tuple(image.channel_names)
-    fmt, depth = _output_depth(output, bit_depth, channels, image.bit_depth)
-    if fmt == "jpeg" and channels in (2, 4) and names[-1] != "A":
-        raise OsmapError(f"{output}: JPEG cannot store {channels} channels ({', '.join(names)}); "
-                         "use .png, .tif or .exr")
-    if uv_out is not None:
-        if os.path.splitext(uv_out)[1].lower() != ".exr":
-            raise click.BadParameter(f"{uv_out}: must be an .exr file", param_hint="'--uv-out'")
-        if os.path.abspath(uv_out) == os.path.abspath(output):
-            raise click.BadParameter(f"{uv_out}: is the same file as --output",
-                                     param_hint="'--uv-out'")
-        output_format(uv_out, 32, 2)
+    withs = []
+    for spec in with_maps:
+        try:
+            withs.append(parse_with(spec))
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="'--with'") from None
+    if len({w.name for w in withs}) != len(withs):
+        raise click.BadParameter("two maps with the same NAME", param_hint="'--with'")
 
-    # 3. the work
-    from osmap_cli.progress import ProgressBar
-    from osmap_cli.synth import synthesize
-
-    show_bar = not quiet and sys.stderr.isatty()
-    with ProgressBar(enabled=show_bar, desc="osmap synth") as progress:
-        result = synthesize(image.pixels, options, progress=progress)
-
-    # 4. the outputs, all or nothing
+    from osmap_cli.batch import Job, run_jobs
     from osmap_cli.presets import is_preset_path
 
     preset_name = os.path.basename(preset) if is_preset_path(preset) else preset
-    metadata = _provenance(options, preset_name, exemplar)
-    items = [(output, result.pixels, depth, names, metadata)]
-    if uv_out is not None:
-        uv = result.positions[..., ::-1]  # (row, col) -> (u = col, v = row)
-        uv_meta = dict(metadata, uv_channels=UV_DESCRIPTION)
-        items.append((uv_out, uv, 32, ("u", "v"), uv_meta))
-    _write_all(items)
+    preset_values = None if is_preset_path(preset) else dict(loaded.values)
+    plans = _plan_outputs(inputs, output, out_dir, name_template, uv_out, withs, options,
+                          preset_name, bit_depth, overwrite)
+    input_paths = set()
+    for path in [*inputs, *(spec.path for _, _, ws, _ in plans for spec, _ in ws),
+                 orientation_field, scale_field]:
+        if path:
+            input_paths.add(os.path.realpath(path))
+    show_bar = not quiet and jobs == 1 and sys.stderr.isatty()
+    job_list = []
+    for index, (exemplar, main, maps, uv) in enumerate(plans, 1):
+        refused = None
+        for out in [main, *(o for _, o in maps), *([uv] if uv else [])]:
+            if os.path.realpath(out) in input_paths:
+                refused = f"{out}: refusing to write over an input file"
+                break
+        job_list.append(Job(
+            index=index, exemplar=exemplar, output=main, options=options, preset=preset_name,
+            preset_values=preset_values, bit_depth=bit_depth, uv_out=uv,
+            withs=tuple(maps),
+            orientation_field=orientation_field, scale_field=scale_field,
+            replace=output is not None or overwrite, refused=refused, progress=show_bar,
+            quiet=quiet, label="osmap synth" if len(plans) == 1 else os.path.basename(exemplar),
+        ))
+    return run_jobs(job_list, workers=jobs, fail_fast=fail_fast, json_lines=json_lines,
+                    quiet=quiet, debug=_state["debug"])
 
-    if not quiet:
-        if fmt == "jpeg" and channels in (2, 4):
-            click.echo(f"osmap: warning: {output}: JPEG cannot store alpha; the alpha channel "
-                       "was dropped", err=True)
-        height, width = result.pixels.shape[:2]
-        kept = channels - 1 if fmt == "jpeg" and channels in (2, 4) else channels
-        label = {"png": "PNG", "openexr": "EXR", "tiff": "TIFF", "jpeg": "JPEG"}[fmt]
-        sample = {16: "half", 32: "float"}[depth] if fmt == "openexr" else f"{depth}-bit"
-        if fmt == "tiff" and depth == 32:
-            sample = "float"
-        line = f"wrote {output}: {width}x{height}, {kept} channel{'s' * (kept != 1)}, " \
-               f"{sample} {label}"
-        if uv_out is not None:
-            line += f"; positions in {uv_out}"
-        click.echo(f"{line} ({time.monotonic() - started:.1f} s)")
+
+def _expand_inputs(exemplars: tuple[str, ...]) -> list[str]:
+    """The exemplar paths, "-" replaced by the lines of stdin (blank lines skipped)."""
+    inputs: list[str] = []
+    for item in exemplars:
+        if item == "-":
+            text = sys.stdin.read()
+            inputs.extend(line.strip() for line in text.splitlines() if line.strip())
+        else:
+            inputs.append(item)
+    if not inputs:
+        raise click.BadParameter("no exemplar paths (stdin was empty)", param_hint="'EXEMPLAR'")
+    return inputs
 
 
-UV_DESCRIPTION = ("u = exemplar column (x), v = exemplar row (y), in exemplar pixels; "
-                  "(0, 0) is the centre of the top-left exemplar pixel")
+NAME_FIELDS = ("stem", "name", "ext", "parent", "index", "width", "height", "seed", "preset",
+               "quality")
+
+
+def _name_fields(exemplar: str, index: int, options, preset_name: str) -> dict:
+    base = os.path.basename(exemplar)
+    stem, ext = os.path.splitext(base)
+    return {"stem": stem, "name": base, "ext": ext.lstrip(".").lower(),
+            "parent": os.path.basename(os.path.dirname(os.path.abspath(exemplar))),
+            "index": index, "width": options.width, "height": options.height,
+            "seed": options.seed, "preset": preset_name, "quality": options.quality}
+
+
+def _fill(template: str, fields: dict, hint: str) -> str:
+    try:
+        return template.format_map(fields)
+    except (KeyError, IndexError, ValueError, AttributeError) as exc:
+        raise click.BadParameter(f"{template!r}: {exc!s} (fields: "
+                                 f"{', '.join('{' + f + '}' for f in NAME_FIELDS)})",
+                                 param_hint=hint) from None
+
+
+def _plan_outputs(inputs, output, out_dir, name_template, uv_out, withs, options, preset_name,
+                  bit_depth, overwrite):
+    """[(exemplar, output, [(WithMap, map output)], uv output)] for every input, checked
+    before any work: output paths, formats, bit depths, collisions."""
+    from osmap_cli.imageio import output_format
+    from osmap_cli.materials import WithMap, expand_path, with_output_path
+
+    if output is not None and out_dir is not None:
+        raise click.UsageError("give either -o/--output (one exemplar) or --out-dir (any "
+                               "number), not both")
+    if output is None and out_dir is None:
+        raise click.UsageError("missing option '-o' / '--output' (or --out-dir DIR for "
+                               "several exemplars)")
+    if output is not None:
+        if len(inputs) > 1:
+            raise click.UsageError(f"-o names one output but {len(inputs)} exemplars were "
+                                   "given; use --out-dir DIR (and --name TEMPLATE)")
+        for flag, value in (("--name", name_template), ("--overwrite", overwrite)):
+            if value:
+                raise click.UsageError(f"{flag} works with --out-dir only")
+    if uv_out is not None and os.path.splitext(uv_out)[1].lower() != ".exr":
+        raise click.BadParameter(f"{uv_out}: must be an .exr file", param_hint="'--uv-out'")
+    if out_dir is not None:
+        if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+            raise OsmapError(f"{out_dir}: --out-dir exists and is not a directory")
+        try:
+            os.makedirs(out_dir, exist_ok=True)
+        except OSError as exc:
+            raise OsmapError(f"{out_dir}: cannot create the output directory "
+                             f"({exc.strerror or exc})") from None
+
+    plans = []
+    owners: dict[str, str] = {}
+    for index, exemplar in enumerate(inputs, 1):
+        fields = _name_fields(exemplar, index, options, preset_name)
+        if output is not None:
+            main = output
+            uv = _fill(uv_out, fields, "'--uv-out'") if uv_out else None
+        else:
+            main = os.path.join(out_dir, _fill(name_template or "{stem}.{ext}", fields,
+                                               "'--name'"))
+            uv = os.path.join(out_dir, _fill(uv_out, fields, "'--uv-out'")) if uv_out else None
+        maps = [(WithMap(w.name, expand_path(w.path, exemplar)), with_output_path(main, w.name))
+                for w in withs]
+        output_format(main, None, 1)
+        if bit_depth is not None:
+            try:
+                output_format(main, int(bit_depth), 1)
+            except OsmapError as exc:
+                raise click.BadParameter(str(exc), param_hint="'--bit-depth'") from None
+        if uv is not None:
+            if os.path.abspath(uv) == os.path.abspath(main):
+                raise click.BadParameter(f"{uv}: is the same file as --output",
+                                         param_hint="'--uv-out'")
+            output_format(uv, 32, 2)
+        for path in [main, *(o for _, o in maps), *([uv] if uv else [])]:
+            key = os.path.abspath(path)
+            if key in owners:
+                other = owners[key]
+                what = "twice" if other == exemplar else f"for {other} and {exemplar}"
+                raise click.UsageError(f"{path}: the same output {what}; make --name unique "
+                                       "(e.g. add {index} or {parent})")
+            owners[key] = exemplar
+        plans.append((exemplar, main, maps, uv))
+    return plans
 
 
 def _load_preset(preset: str):
@@ -417,75 +589,6 @@ def _resolve_options(options_cls, preset_values: dict, size: tuple[int, int], gi
     except OsmapError as exc:
         # the preset was validated on loading: what is wrong now came from the command line
         raise click.UsageError(str(exc)) from None
-
-
-def _output_depth(output: str, bit_depth: str | None, channels: int, input_depth: int):
-    """(format, bit depth) for OUTPUT; path problems exit 1, a bad --bit-depth exits 2."""
-    from osmap_cli.imageio import output_format
-
-    fmt, default_depth = output_format(output, None, channels)
-    if bit_depth is not None:
-        try:
-            return output_format(output, int(bit_depth), channels)
-        except OsmapError as exc:
-            raise click.BadParameter(str(exc), param_hint="'--bit-depth'") from None
-    if fmt == "png" and input_depth >= 16:
-        return fmt, 16
-    if fmt == "tiff" and input_depth > default_depth:
-        return fmt, input_depth
-    return fmt, default_depth
-
-
-def _provenance(options, preset_name: str, exemplar: str) -> dict[str, str]:
-    """Metadata stored in every output: enough to reproduce it."""
-    import dataclasses
-    import json
-
-    return {
-        "software": f"osmap {__version__}",
-        "osmap_version": __version__,
-        "command": "synth",
-        "exemplar": os.path.basename(exemplar),
-        "preset": preset_name,
-        "seed": str(options.seed),
-        "options": json.dumps(dataclasses.asdict(options), sort_keys=True),
-    }
-
-
-def _write_all(items) -> None:
-    """Write every (path, pixels, depth, channel names, metadata) or none of them.
-
-    Each image goes to a hidden temporary file next to its target first (imageio writes
-    atomically); only when all are complete are they renamed onto the targets. On any failure
-    (or Ctrl-C) the temporary files are removed and no target is touched.
-    """
-    import secrets
-
-    from osmap_cli.imageio import write_image
-
-    done: list[tuple[str, str]] = []
-    try:
-        for path, pixels, depth, names, metadata in items:
-            directory, base = os.path.split(path)
-            ext = os.path.splitext(base)[1]
-            temp = os.path.join(directory, f".{base}.osmap-{secrets.token_hex(6)}{ext}")
-            try:
-                write_image(temp, pixels, depth, channel_names=names, metadata=metadata)
-            except OsmapError as exc:
-                raise OsmapError(str(exc).replace(temp, path)) from None
-            done.append((temp, path))
-        for temp, path in done:
-            try:
-                os.replace(temp, path)
-            except OSError as exc:
-                raise OsmapError(f"{path}: cannot write file ({exc.strerror or exc})") from None
-        done = []
-    finally:
-        for temp, _ in done:
-            try:
-                os.remove(temp)
-            except OSError:
-                pass
 
 
 # ---------------------------------------------------------------------------------------------

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -12,9 +13,12 @@ from osmap_cli.synth.options import SynthOptions
 from osmap_cli.synth.organise import organise
 from osmap_cli.synth.pyramid import build_pyramid, half_size
 from osmap_cli.synth.refine import refine, upsample
-from osmap_cli.synth.render import render
+from osmap_cli.synth.render import render, render_settings
 
 MIN_LEVEL_SIZE = 8  # the coarsest exemplar level keeps at least this many pixels per side
+# Automatic levels: the OS-Map organises the coarsest level, where an exemplar of about this side
+# keeps copies small and the layout right (5 levels for a 256 px exemplar, 4 for 128 px).
+COARSEST_EXEMPLAR = 16
 
 
 @dataclass(frozen=True)
@@ -24,10 +28,15 @@ class SynthResult:
 
     pixels: np.ndarray
     positions: np.ndarray
+    jacobian: np.ndarray | None = None  # float32 (H, W, 2, 2) with control fields, else None
 
 
 def level_count(exemplar_shape, out_shape, wanted: int) -> int:
-    """Pyramid levels, fewer than wanted when the exemplar or output would get too small."""
+    """Pyramid levels: `wanted`, or for 0 as many as halve the exemplar's shorter side to about
+    COARSEST_EXEMPLAR pixels; fewer when the exemplar or output would get too small."""
+    if wanted == 0:
+        ratio = max(min(exemplar_shape), 1) / COARSEST_EXEMPLAR
+        wanted = max(1, round(math.log2(ratio)) + 1) if ratio > 1 else 1
     levels = 1
     ex, out = tuple(exemplar_shape), tuple(out_shape)
     while levels < wanted:
@@ -47,13 +56,18 @@ def valid_box(shape, jac: np.ndarray, radius: int):
     return lo, hi
 
 
-def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None) -> SynthResult:
+def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
+               fields=None) -> SynthResult:
     """Synthesize a texture like `exemplar` (float32 (h, w, C), any channels, alpha included).
 
     `progress`, if given, is called with a fraction of the total work as stages finish.
+    `fields` (osmap_cli.fields.ControlFields, optional) varies the orientation and scale per
+    output pixel on top of the options' (method osmap only).
     """
     opts = options.validated().with_quality()
     exemplar = np.ascontiguousarray(exemplar, np.float32)
+    if fields is not None and opts.method != "osmap":
+        raise ValueError("control fields need method 'osmap'")
     if opts.method == "paper":
         from osmap_cli.synth.paper import synthesize_paper
         pos = synthesize_paper(exemplar.shape[:2], opts, progress=progress)
@@ -66,7 +80,17 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None) -> Sy
     for _ in range(levels - 1):
         shapes.append(half_size(shapes[-1]))
     jac = opts.jacobian()
+    if fields is not None:
+        # the OS-Map lays out the coarsest level with one Jacobian summarising the fields;
+        # the refinement then follows the per-pixel field at every level
+        angle, scale = fields.representative(opts.orientation, opts.scale)
+        jac = opts.replace(orientation=angle, scale=scale).jacobian()
     wrap = opts.tileable
+
+    def jacobian_field(shape):
+        if fields is None:
+            return np.broadcast_to(jac.astype(np.float32), (*shape, 2, 2)).copy()
+        return fields.jacobian_field(shape, opts.orientation, opts.scale, opts.anisotropy)
 
     work = [opts.coarse_sweeps + 1] + [opts.sweeps] * (levels - 1)
     total = float(sum(work)) or 1.0
@@ -79,12 +103,13 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None) -> Sy
     for level in range(levels - 1, -1, -1):
         image = pyramid[level]
         feat = appearance_features(image, opts.feature_dims)
-        lo, hi = valid_box(image.shape[:2], jac, opts.patch_radius)
-        jac_field = np.broadcast_to(jac.astype(np.float32), (*shapes[level], 2, 2)).copy()
+        jac_field = jacobian_field(shapes[level])
+        reach = jac if fields is None else np.abs(jac_field).max(axis=(0, 1))
+        lo, hi = valid_box(image.shape[:2], reach, opts.patch_radius)
         if pos is None:
             pos = organise(image.shape[:2], shapes[level], jac, lo, hi, opts, wrap=wrap,
                            seed=opts.seed)
-            if np.allclose(jac, np.eye(2)):
+            if fields is None and np.allclose(jac, np.eye(2)):
                 pos = np.rint(pos)
             advance(1)
             sweeps = opts.coarse_sweeps
@@ -92,5 +117,6 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None) -> Sy
             pos = upsample(pos, shapes[level], jac_field, lo, hi)
             sweeps = opts.sweeps
         pos = refine(pos, feat, jac_field, lo, hi, sweeps, opts, wrap=wrap, seed=opts.seed,
-                     salt=level, progress=advance)
-    return SynthResult(render(exemplar, pos), pos)
+                     salt=level, level_scale=2 ** level, progress=advance)
+    pixels = render(exemplar, pos, jac_field, *render_settings(opts))
+    return SynthResult(pixels, pos, None if fields is None else jac_field)

@@ -1,0 +1,105 @@
+"""`osmap info FILE`: print the provenance osmap stored in an output, and how to remake it."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import click
+
+from osmap_cli.errors import OsmapError
+
+INFO_EPILOG = """\b
+Examples:
+  osmap info out/cells.png
+  osmap info out/cells.exr --json | jq -r .seed
+  osmap info out/marble.nrrd
+  eval "$(osmap info out/cells.png --command)"    # writes out/cells.png again, same bytes
+"""
+
+# printed first, in this order; other keys follow sorted
+_ORDER = ("software", "command", "role", "exemplar", "exemplar_size", "preset", "seed", "args")
+
+
+@click.command("info", epilog=INFO_EPILOG,
+               short_help="Print the provenance stored in an osmap output.")
+@click.argument("path", type=click.Path(path_type=str), metavar="FILE")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print the stored key/value pairs as one JSON object (plus \"reproduce\").")
+@click.option("--command", "command_only", is_flag=True,
+              help="Print only the command line that writes FILE again.")
+def info_command(path: str, as_json: bool, command_only: bool) -> None:
+    """Print the provenance stored in FILE by osmap, and the command line that
+    writes the same bytes again.
+
+    \b
+    FILE is an image osmap wrote (PNG text chunks, EXR header, TIFF/JPEG
+    description) or a NRRD volume ("osmap:KEY:=VALUE" fields). The command
+    names the input files as they were named (no folders): run it where they
+    are. A file without osmap metadata is an error (exit 1).
+    """
+    from osmap_cli.provenance import reproduce_command
+
+    meta = read_provenance(path)
+    if not meta:
+        raise OsmapError(f"{path}: no osmap provenance in this file")
+    command = reproduce_command(meta, path)
+    if command_only:
+        if command is None:
+            raise OsmapError(f"{path}: the provenance does not say how to remake this file")
+        click.echo(command)
+        return
+    if as_json:
+        click.echo(json.dumps({**meta, "reproduce": command}, sort_keys=True))
+        return
+    keys = [k for k in _ORDER if k in meta] + sorted(k for k in meta if k not in _ORDER)
+    width = max(len(k) for k in keys)
+    click.echo(f"{'file':<{width}}  {path}")
+    for key in keys:
+        value = meta[key]
+        if key == "options":
+            value = json.dumps(json.loads(value), sort_keys=True) if _is_json(value) else value
+        click.echo(f"{key:<{width}}  {value}")
+    if command is not None:
+        click.echo(f"{'reproduce':<{width}}  {command}")
+
+
+def _is_json(text: str) -> bool:
+    try:
+        json.loads(text)
+    except ValueError:
+        return False
+    return True
+
+
+def read_provenance(path: str) -> dict[str, str]:
+    """The osmap key/value pairs stored in an image or a NRRD file."""
+    if os.path.isdir(path):
+        raise OsmapError(f"{path}: is a directory (give one slice file)")
+    if not os.path.isfile(path):
+        raise OsmapError(f"{path}: no such file")
+    with open(path, "rb") as handle:
+        head = handle.read(4)
+    if head == b"NRRD":
+        return read_nrrd_fields(path)
+    if path.lower().endswith(".npy"):
+        raise OsmapError(f"{path}: .npy files cannot store metadata (no provenance)")
+    from osmap_cli.imageio import read_metadata
+
+    return read_metadata(path)
+
+
+def read_nrrd_fields(path: str) -> dict[str, str]:
+    """The ``osmap:KEY:=VALUE`` key/value lines of a NRRD header (the header only is read)."""
+    meta: dict[str, str] = {}
+    with open(path, "rb") as handle:
+        for raw in handle:
+            line = raw.rstrip(b"\r\n")
+            if not line:
+                break  # end of the header
+            text = line.decode("utf-8", "replace")
+            if ":=" in text and not text.startswith("#"):
+                key, value = text.split(":=", 1)
+                if key.startswith("osmap:"):
+                    meta[key[len("osmap:"):]] = value
+    return meta

@@ -1,0 +1,113 @@
+"""Provenance: the metadata stored in every output, and the command line that reproduces it.
+
+Every file osmap writes carries string key/value pairs (imageio.write_image stores them as PNG
+text chunks, EXR header attributes, or a JSON block in the TIFF ImageDescription / JPEG comment;
+NRRD volumes as ``key:=value`` lines). Besides the version, exemplar name, preset, seed and full
+option set, ``args`` holds the *canonical* flags of the run, made from the resolved options (not
+from what was typed), so that a batch and a separate run store the same text, and so that
+``osmap info FILE`` can print a command line that writes the same bytes again.
+
+Only file *names* (no directories) are stored: the same inputs in another folder reproduce the
+same file.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import shlex
+
+from osmap_cli import __version__
+
+__all__ = ["image_metadata", "reproduce_command", "synth_args"]
+
+# flag defaults of the non-tunable options (SynthOptions' defaults, see cli.py copies)
+_PLAIN = (("scale", 1.0), ("orientation", 0.0), ("anisotropy", 1.0))
+
+
+def _number(value) -> str:
+    """The shortest text that reads back as exactly `value`."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    value = float(value)
+    return str(int(value)) if value.is_integer() and abs(value) < 1e15 else repr(value)
+
+
+def synth_args(options, preset: str, preset_values: dict | None, bit_depth: int,
+               orientation_field: str | None = None, scale_field: str | None = None
+               ) -> list[str]:
+    """Canonical `osmap synth` flags (no exemplar, no -o) that resolve to `options` again.
+
+    `preset_values` is the built-in preset's table; None for a preset *file*, in which case
+    every tunable is written out (the file may be gone or changed when the command is re-run).
+    """
+    from osmap_cli.synth.options import SynthOptions
+
+    args = ["--size", f"{options.width}x{options.height}", "--seed", str(options.seed),
+            "--preset", preset]
+    for name, default in _PLAIN:
+        value = getattr(options, name)
+        if value != default:
+            args += ["--" + name, _number(value)]
+    if options.tileable:
+        args.append("--tileable")
+    if options.quality != "default":
+        args += ["--quality", options.quality]
+    if options.method != "osmap":
+        args += ["--method", options.method]
+    baseline = SynthOptions().replace(**(preset_values or {}))
+    for name in SynthOptions.tunables():
+        value = getattr(options, name)
+        if preset_values is None or value != getattr(baseline, name):
+            args += ["--" + name.replace("_", "-"), _number(value)]
+    args += ["--bit-depth", str(bit_depth)]
+    if orientation_field:
+        args += ["--orientation-field", os.path.basename(orientation_field)]
+    if scale_field:
+        args += ["--scale-field", os.path.basename(scale_field)]
+    return args
+
+
+def image_metadata(options, preset: str, exemplar: str, exemplar_shape, args: list[str],
+                   role: str = "image", extra: dict | None = None) -> dict[str, str]:
+    """The metadata of one `osmap synth` output.
+
+    role: "image" (the main output), "with:NAME" (a --with map), or "uv" (--uv-out).
+    """
+    meta = {
+        "software": f"osmap {__version__}",
+        "osmap_version": __version__,
+        "command": "synth",
+        "exemplar": os.path.basename(exemplar),
+        "exemplar_size": f"{exemplar_shape[1]}x{exemplar_shape[0]}",
+        "preset": preset,
+        "seed": str(options.seed),
+        "options": json.dumps(dataclasses.asdict(options), sort_keys=True),
+        "role": role,
+        "args": shlex.join(args),
+    }
+    meta.update(extra or {})
+    return meta
+
+
+def reproduce_command(meta: dict[str, str], path: str) -> str | None:
+    """The command line that writes `path` again (None when the metadata cannot tell)."""
+    command = meta.get("command")
+    args = shlex.split(meta.get("args", ""))
+    if command == "apply" and meta.get("uv") and meta.get("map"):
+        return shlex.join(["osmap", "apply", meta["uv"], meta["map"], "-o", path, *args])
+    if command not in ("synth", "solid") or "args" not in meta:
+        return None
+    inputs = shlex.split(meta["inputs"]) if "inputs" in meta else [meta.get("exemplar", "")]
+    role = meta.get("role", "image")
+    output = path
+    stem, ext = os.path.splitext(path)
+    if role.startswith("with:") and stem.endswith("_" + role[5:]):
+        output = stem[: -len(role[5:]) - 1] + ext
+    elif role == "uv":
+        output = stem + "_image" + meta.get("image_ext", ".png")
+        args += ["--uv-out", path]
+    return shlex.join(["osmap", command, *inputs, "-o", output, *args])

@@ -1,0 +1,99 @@
+"""Provenance in every output, `osmap info`, and re-running its command line byte for byte."""
+
+from __future__ import annotations
+
+import json
+import shlex
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from osmap_cli import __version__
+from osmap_cli.imageio import write_image
+
+
+@pytest.fixture
+def workdir(small_samples, tmp_path, monkeypatch):
+    """A folder holding an exemplar and a material map, as the current directory."""
+    shutil.copy(small_samples / "cells.png", tmp_path / "cells.png")
+    write_image(tmp_path / "cells_rough.png", np.linspace(0, 1, 64 * 64).reshape(64, 64, 1), 8)
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+def _remake(run_cli, path, remove=()):
+    """Run `osmap info PATH --command`, delete PATH (and `remove`), then run that command;
+    returns the command."""
+    result = run_cli("info", path, "--command")
+    assert result.code == 0, result.err
+    command = result.out.strip()
+    for name in (path, *remove):
+        Path(name).unlink(missing_ok=True)
+    args = shlex.split(command)
+    assert args[0] == "osmap"
+    rerun = run_cli(*args[1:])
+    assert rerun.code == 0, rerun.err
+    return command
+
+
+@pytest.mark.parametrize("output, extra", [
+    ("out.png", ["--seed", "7", "--levels", "2", "--scale", "1.25"]),
+    ("out.exr", ["--bit-depth", "32", "--orientation", "33.3", "--quality", "fast"]),
+    ("out.tif", ["--preset", "stochastic", "--tileable", "--occupancy", "0.3"]),
+])
+def test_info_command_reproduces_the_bytes(run_cli, workdir, output, extra):
+    result = run_cli("synth", "cells.png", "-o", output, "--size", "40x32", "--preset", "fast",
+                     "--quiet", *extra)
+    assert result.code == 0, result.err
+    first = (workdir / output).read_bytes()
+    command = _remake(run_cli, output)
+    assert (workdir / output).read_bytes() == first, command
+
+
+def test_info_reproduces_with_maps_uv_and_preset_files(run_cli, workdir):
+    (workdir / "mine.toml").write_text('name = "mine"\n[synth]\nlevels = 2\nsweeps = 1\n')
+    result = run_cli("synth", "cells.png", "-o", "m.png", "--size", "32", "--preset",
+                     "mine.toml", "--with", "cells_rough.png", "--uv-out", "m_uv.exr", "--quiet")
+    assert result.code == 0, result.err
+    files = ("m.png", "m_cells_rough.png", "m_uv.exr")
+    before = {name: (workdir / name).read_bytes() for name in files}
+    for name in files:
+        for other in files:
+            (workdir / other).write_bytes(before[other])
+        _remake(run_cli, name, remove=files)
+        assert (workdir / name).read_bytes() == before[name], name
+
+
+def test_info_prints_provenance(run_cli, workdir):
+    assert run_cli("synth", "cells.png", "-o", "o.png", "--size", "32", "--seed", "3",
+                   "--preset", "fast", "--quiet").code == 0
+    result = run_cli("info", "o.png")
+    assert result.code == 0, result.err
+    fields = dict(line.split(None, 1) for line in result.out.splitlines())
+    assert fields["file"] == "o.png" and fields["seed"] == "3"
+    assert fields["software"] == f"osmap {__version__}" and fields["exemplar"] == "cells.png"
+    assert fields["reproduce"].startswith("osmap synth cells.png -o o.png --size 32x32")
+    data = json.loads(run_cli("info", "o.png", "--json").out)
+    assert data["preset"] == "fast" and json.loads(data["options"])["seed"] == 3
+
+
+def test_info_reads_nrrd_fields(run_cli, tmp_path):
+    path = tmp_path / "v.nrrd"
+    header = ("NRRD0004\n# comment\ntype: float\ndimension: 3\nsizes: 1 1 1\n"
+              "endian: little\nencoding: raw\nosmap:command:=solid\nosmap:seed:=9\n"
+              "osmap:exemplar:=marble.png\nosmap:args:=--size 1x1x1 --seed 9\n\n")
+    path.write_bytes(header.encode() + np.zeros(1, "<f4").tobytes())
+    result = run_cli("info", path)
+    assert result.code == 0, result.err
+    assert "seed      9" in result.out.replace("  ", " " * 2)
+    assert f"osmap solid marble.png -o {path} --size 1x1x1 --seed 9" in result.out
+
+
+def test_info_errors(run_cli, small_samples, tmp_path):
+    result = run_cli("info", small_samples / "cells.png")  # not written by osmap
+    assert result.code == 1 and "no osmap provenance" in result.err
+    result = run_cli("info", tmp_path / "missing.png")
+    assert result.code == 1 and "no such file" in result.err
+    assert len(result.err_lines) == 1
