@@ -25,7 +25,10 @@ from numba import njit, prange
 #   seed      uint64   user seed
 #   salt      uint64   distinguishes level / sweep / colour
 #   parity    int64    which checkerboard colour this pass updates
-RefineParams = namedtuple("RefineParams", "radius lam wrap lo hi n_random seed salt parity")
+#   seam      float64  cost added per 8-neighbour whose position does not continue the candidate
+#   max_area  float64  copy regions larger than this (pixels) are penalised as they grow
+RefineParams = namedtuple("RefineParams",
+                          "radius lam wrap lo hi n_random seed salt parity seam max_area")
 
 
 @njit(cache=True, inline="always")
@@ -73,6 +76,55 @@ def _clamp(v, lo, hi):
     return min(max(v, lo), hi)
 
 
+# (dy, dx) of the 8 neighbours, in scan order
+EIGHT_NEIGHBOURS = np.array([(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)],
+                            np.int64)
+
+
+@njit(cache=True, inline="always")
+def _neighbour(y, x, dy, dx, H, W, wrap):
+    """(qy, qx, inside): pixel (y + dy, x + dx) of an H x W field, wrapped when toroidal."""
+    qy = y + dy
+    qx = x + dx
+    if wrap:
+        return qy % H, qx % W, True
+    return qy, qx, 0 <= qy < H and 0 <= qx < W
+
+
+@njit(cache=True, inline="always")
+def _seam_penalty(src, area, y, x, cy, cx, J, p):
+    """p.seam times the number of 8-neighbours q whose position is not cy,cx + J (q - p), plus,
+    for each neighbour it does continue, p.seam times how far that neighbour's copy region
+    exceeds p.max_area (relative): seams cost, and so does growing an oversized copy."""
+    if p.seam == 0.0:
+        return 0.0
+    H, W = src.shape[0], src.shape[1]
+    n = 0
+    excess = 0.0
+    for k in range(8):
+        dy, dx = EIGHT_NEIGHBOURS[k, 0], EIGHT_NEIGHBOURS[k, 1]
+        qy, qx, inside = _neighbour(y, x, dy, dx, H, W, p.wrap)
+        if not inside:
+            continue
+        ey = src[qy, qx, 0] - cy - (J[0, 0] * dy + J[0, 1] * dx)
+        ex = src[qy, qx, 1] - cx - (J[1, 0] * dy + J[1, 1] * dx)
+        if abs(ey) > 0.25 or abs(ex) > 0.25:
+            n += 1
+        elif area[qy, qx] > p.max_area:
+            excess += area[qy, qx] / p.max_area - 1.0
+    return p.seam * (n + excess)
+
+
+@njit(cache=True, inline="always")
+def _total_cost(src, area, y, x, feat, cy, cx, J, nb, nb_ok, occ, p, best, buf):
+    """Matching cost of candidate (cy, cx) for pixel (y, x) plus its seam penalty."""
+    seam = _seam_penalty(src, area, y, x, cy, cx, J, p)
+    if seam >= best:
+        return np.inf
+    return seam + _candidate_cost(feat, cy, cx, J, p.radius, nb, nb_ok, occ, p.lam, best - seam,
+                                  buf)
+
+
 @njit(cache=True)
 def _candidate_cost(feat, cy, cx, jac, radius, nb, nb_ok, occ, lam, best, buf):
     """Occupancy-weighted SSD between the gathered output neighbourhood nb and the exemplar
@@ -103,12 +155,13 @@ def _candidate_cost(feat, cy, cx, jac, radius, nb, nb_ok, occ, lam, best, buf):
 
 
 @njit(cache=True, parallel=True)
-def refine_pass(src, dst, feat, jac, knn, occ, p):
+def refine_pass(src, dst, feat, jac, knn, occ, area, p):
     """One red-black pass: for pixels of colour p.parity, write the best candidate into dst.
 
     src, dst float32[H, W, 2] (dst must be a copy of src); feat float32[h, w, F] exemplar
     appearance; jac float32[H, W, 2, 2] output-to-exemplar Jacobian per pixel; knn int32[h, w, k, 2]
-    similar exemplar positions; occ float32[h, w] occupancy.
+    similar exemplar positions; occ float32[h, w] occupancy; area float32[H, W] the size of each
+    pixel's copy region (copy_region_areas).
     """
     H, W = src.shape[0], src.shape[1]
     nf = feat.shape[2]
@@ -120,22 +173,16 @@ def refine_pass(src, dst, feat, jac, knn, occ, p):
         nb = np.empty(side * side * nf)
         nb_ok = np.zeros(side * side, np.bool_)
         buf = np.empty(nf)
+        seen = np.empty((8, 2))
         for x in range((y + p.parity) % 2, W, 2):
             J = jac[y, x]
             # gather the output neighbourhood's current appearance
             n = 0
             for dy in range(-r, r + 1):
                 for dx in range(-r, r + 1):
-                    qy = y + dy
-                    qx = x + dx
-                    ok = True
-                    if p.wrap:
-                        qy %= H
-                        qx %= W
-                    elif qy < 0 or qy >= H or qx < 0 or qx >= W:
-                        ok = False
-                    nb_ok[n] = ok
-                    if ok:
+                    qy, qx, inside = _neighbour(y, x, dy, dx, H, W, p.wrap)
+                    nb_ok[n] = inside
+                    if inside:
                         _sample(feat, src[qy, qx, 0], src[qy, qx, 1], buf)
                         for f in range(nf):
                             nb[n * nf + f] = buf[f]
@@ -143,27 +190,39 @@ def refine_pass(src, dst, feat, jac, knn, occ, p):
 
             by = src[y, x, 0]
             bx = src[y, x, 1]
-            best = _candidate_cost(feat, by, bx, J, r, nb, nb_ok, occ, p.lam, np.inf, buf)
+            best = _total_cost(src, area, y, x, feat, by, bx, J, nb, nb_ok, occ, p, np.inf, buf)
+            y0 = by
+            x0 = bx
+            n_seen = 0
             index = y * W + x
             # coherent candidates from the 8 neighbours, and their k most similar positions
             for dy in range(-1, 2):
                 for dx in range(-1, 2):
                     if dy == 0 and dx == 0:
                         continue
-                    qy = y + dy
-                    qx = x + dx
-                    if p.wrap:
-                        qy %= H
-                        qx %= W
-                    elif qy < 0 or qy >= H or qx < 0 or qx >= W:
+                    qy, qx, inside = _neighbour(y, x, dy, dx, H, W, p.wrap)
+                    if not inside:
                         continue
                     cy = src[qy, qx, 0] - (J[0, 0] * dy + J[0, 1] * dx)
                     cx = src[qy, qx, 1] - (J[1, 0] * dy + J[1, 1] * dx)
                     if cy < p.lo[0] or cy > p.hi[0] or cx < p.lo[1] or cx > p.hi[1]:
                         continue
-                    cost = _candidate_cost(feat, cy, cx, J, r, nb, nb_ok, occ, p.lam, best, buf)
-                    if cost < best:
-                        best, by, bx = cost, cy, cx
+                    # inside a copy the neighbours propose the same position: cost it (and its
+                    # k-NN) once; the current position was costed first
+                    duplicate = False
+                    for j in range(n_seen):
+                        if seen[j, 0] == cy and seen[j, 1] == cx:
+                            duplicate = True
+                    if duplicate:
+                        continue
+                    seen[n_seen, 0] = cy
+                    seen[n_seen, 1] = cx
+                    n_seen += 1
+                    if cy != y0 or cx != x0:
+                        cost = _total_cost(src, area, y, x, feat, cy, cx, J, nb, nb_ok, occ, p,
+                                           best, buf)
+                        if cost < best:
+                            best, by, bx = cost, cy, cx
                     iy = int(cy + 0.5)
                     ix = int(cx + 0.5)
                     fy = cy - iy
@@ -171,8 +230,8 @@ def refine_pass(src, dst, feat, jac, knn, occ, p):
                     for j in range(k):
                         ky = _clamp(knn[iy, ix, j, 0] + fy, p.lo[0], p.hi[0])
                         kx = _clamp(knn[iy, ix, j, 1] + fx, p.lo[1], p.hi[1])
-                        cost = _candidate_cost(feat, ky, kx, J, r, nb, nb_ok, occ, p.lam,
-                                               best, buf)
+                        cost = _total_cost(src, area, y, x, feat, ky, kx, J, nb, nb_ok, occ, p,
+                                           best, buf)
                         if cost < best:
                             best, by, bx = cost, ky, kx
             # PatchMatch random search around the best, at halving radii, plus one global draw
@@ -189,7 +248,7 @@ def refine_pass(src, dst, feat, jac, knn, occ, p):
                     radius *= 0.5
                 cy = _clamp(np.floor(cy) + (by - np.floor(by)), p.lo[0], p.hi[0])
                 cx = _clamp(np.floor(cx) + (bx - np.floor(bx)), p.lo[1], p.hi[1])
-                cost = _candidate_cost(feat, cy, cx, J, r, nb, nb_ok, occ, p.lam, best, buf)
+                cost = _total_cost(src, area, y, x, feat, cy, cx, J, nb, nb_ok, occ, p, best, buf)
                 if cost < best:
                     best, by, bx = cost, cy, cx
             dst[y, x, 0] = by
@@ -262,6 +321,45 @@ def sample_image(image, pos):
             _sample(image, pos[y, x, 0], pos[y, x, 1], buf)
             for c in range(C):
                 out[y, x, c] = buf[c]
+    return out
+
+
+@njit(cache=True, parallel=True)
+def vote_image(image, pos, jac, radius, wrap):
+    """Render with seam blending: every pixel p is the Gaussian-weighted mean of the colours its
+    neighbours q (|q - p|_inf <= radius) assign to it, image at pos[q] + J[q] (p - q) (Kwatra et al.
+    2005's voting). Inside a verbatim copy all votes agree, so copies stay exact; across a seam
+    the two sides blend over about `radius` pixels. radius 0 is sample_image.
+    Where all votes agree the pixel is the copied value itself, bit for bit."""
+    H, W = pos.shape[0], pos.shape[1]
+    C = image.shape[2]
+    sigma = max(0.6 * radius, 0.5)
+    out = np.empty((H, W, C), np.float32)
+    for y in prange(H):
+        buf = np.empty(C, np.float32)
+        acc = np.empty(C)
+        centre = np.empty(C, np.float32)
+        for x in range(W):
+            _sample(image, pos[y, x, 0], pos[y, x, 1], centre)
+            acc[:] = 0.0
+            total = 0.0
+            agree = True
+            for dy in range(-radius, radius + 1):
+                for dx in range(-radius, radius + 1):
+                    qy, qx, inside = _neighbour(y, x, dy, dx, H, W, wrap)
+                    if not inside:
+                        continue
+                    J = jac[qy, qx]
+                    sy = pos[qy, qx, 0] - (J[0, 0] * dy + J[0, 1] * dx)
+                    sx = pos[qy, qx, 1] - (J[1, 0] * dy + J[1, 1] * dx)
+                    weight = np.exp(-(dy * dy + dx * dx) / (2.0 * sigma * sigma))
+                    _sample(image, sy, sx, buf)
+                    for c in range(C):
+                        acc[c] += weight * buf[c]
+                        agree = agree and buf[c] == centre[c]
+                    total += weight
+            for c in range(C):
+                out[y, x, c] = centre[c] if agree else acc[c] / total
     return out
 
 

@@ -24,6 +24,7 @@ from osmap_cli.errors import OsmapError
 from osmap_cli.imageio import read_image, read_metadata, write_image
 from osmap_cli.synth import options as synth_options
 from osmap_cli.synth.options import SynthOptions
+from osmap_cli.synth.render import render
 
 FAST = ("--size", "48", "--preset", "fast", "--quiet")
 
@@ -243,7 +244,7 @@ def test_metadata_records_provenance(run_cli, small_samples, tmp_path):
     assert meta["seed"] == "5"
     options = json.loads(meta["options"])
     assert set(options) == {f.name for f in dataclasses.fields(SynthOptions)}
-    assert options["seed"] == 5 and options["scale"] == 1.5 and options["levels"] == 3
+    assert options["seed"] == 5 and options["scale"] == 1.5 and options["sweeps"] == 2
     assert SynthOptions(**options).validated()  # the record is a complete, valid option set
 
 
@@ -267,8 +268,9 @@ def test_uv_out_reproduces_the_output(run_cli, small_samples, tmp_path):
     assert u.min() >= 0 and u.max() <= w - 1 and v.min() >= 0 and v.max() <= h - 1
     # default method, no scale/rotation: J = identity, every position is a whole pixel
     assert np.array_equal(u, np.rint(u)) and np.array_equal(v, np.rint(v))
-    resampled = exemplar[v.astype(int), u.astype(int)]
-    assert np.array_equal(read_image(out).pixels, resampled)
+    # the output is the exemplar rendered through the positions, seams blended as by default
+    rendered = render(exemplar, np.stack([v, u], axis=-1), blend=SynthOptions().blend)
+    assert np.abs(read_image(out).pixels - rendered).max() <= 0.5 / 255 + 1e-6
     assert "uv_channels" in read_metadata(uv_path)
     assert _listing(tmp_path) == ["out.png", "uv.exr"]
 
@@ -390,10 +392,10 @@ def test_preset_precedence(run_cli, small_samples, tmp_path):
     assert (options["levels"], options["sweeps"], options["occupancy"]) == (3, 2, 0.25)
     # a built-in preset, overridden likewise
     result = run_cli("synth", small_samples / "cells.png", "-o", out, "--size", "48", "--quiet",
-                     "--preset", "fast", "--sweeps", "2")
+                     "--preset", "fast", "--sweeps", "3")
     assert result.code == 0, result.err
     options = _options(out)
-    assert (options["levels"], options["sweeps"]) == (3, 2)
+    assert (options["knn"], options["sweeps"]) == (2, 3)
 
 
 def test_existing_output_is_replaced(run_cli, small_samples, tmp_path):
@@ -453,7 +455,7 @@ BAD_CASES = [
     ("orientation out of range", CELLS, "out.png", ["--orientation", "1000"], 2,
      "--orientation"),
     ("negative seed", CELLS, "out.png", ["--seed", "-1"], 2, "--seed"),
-    ("tuning flag out of range", CELLS, "out.png", ["--levels", "0"], 2, "--levels"),
+    ("tuning flag out of range", CELLS, "out.png", ["--levels", "9"], 2, "--levels"),
     ("not a number", CELLS, "out.png", ["--scale", "big"], 2, "--scale"),
     ("bad quality", CELLS, "out.png", ["--quality", "best"], 2, "--quality"),
     ("bad method", CELLS, "out.png", ["--method", "magic"], 2, "--method"),
@@ -606,7 +608,7 @@ def test_shown_preset_round_trips_as_a_file(run_cli, small_samples, tmp_path):
     result = run_cli("synth", small_samples / "cells.png", "-o", out, "--size", "48", "--quiet",
                      "--preset", own)
     assert result.code == 0, result.err
-    assert _options(out)["levels"] == 3
+    assert (_options(out)["knn"], _options(out)["sweeps"]) == (2, 2)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -65,7 +65,7 @@ def test_shipped_presets_differ_as_intended():
     assert load_preset("stochastic")["occupancy"] > SynthOptions().occupancy
     assert load_preset("directional")["som_anisotropy"] < SynthOptions().som_anisotropy
     fast = load_preset("fast")
-    assert fast["levels"] < SynthOptions().levels and fast["sweeps"] < SynthOptions().sweeps
+    assert fast["sweeps"] < SynthOptions().sweeps and fast["knn"] < SynthOptions().knn
 
 
 def test_list_presets():
@@ -130,7 +130,7 @@ BAD_FILES = [
     ("string for float", '[synth]\noccupancy = "high"\n', ["occupancy", "number"]),
     ("bool for float", "[synth]\noccupancy = false\n", ["occupancy", "number"]),
     ("nan", "[synth]\noccupancy = nan\n", ["occupancy", "finite"]),
-    ("above range", "[synth]\nlevels = 99\n", ["levels = 99", "out of range", "1 to 8"]),
+    ("above range", "[synth]\nlevels = 99\n", ["levels = 99", "out of range", "0 to 8"]),
     ("below range", "[synth]\noccupancy = -1.0\n", ["occupancy = -1.0", "out of range"]),
     ("cross-field", "[synth]\nsom_sigma_min = 5.0\nsom_sigma_max = 1.0\n", ["som_sigma_min"]),
     ("unknown top-level key", "levels = 3\n", ["unknown top-level key 'levels'"]),
@@ -180,6 +180,6 @@ def test_unknown_builtin_name():
 
 def test_builtin_errors_name_the_builtin_file(monkeypatch):
     monkeypatch.setattr(presets, "_read_source",
-                        lambda name: ("[synth]\nlevels = 0\n", "fast.toml (built-in preset)"))
+                        lambda name: ("[synth]\nlevels = 99\n", "fast.toml (built-in preset)"))
     with pytest.raises(OsmapError, match=r"^fast.toml \(built-in preset\): \[synth\] levels"):
         load_preset("fast")

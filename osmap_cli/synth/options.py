@@ -23,6 +23,20 @@ def _spec(default, lo=None, hi=None, doc=""):
     return field(default=default, metadata={"lo": lo, "hi": hi, "doc": doc})
 
 
+def check_number(option: str, value, f: dataclasses.Field, where: str = "") -> None:
+    """Raise OsmapError unless value is a finite number of f's kind inside f's [lo, hi]."""
+    kind = int if isinstance(f.default, int) else float
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
+        raise OsmapError(f"{where}{option}: expected a number, got {value!r}")
+    if kind is int and float(value) != int(value):
+        raise OsmapError(f"{where}{option}: expected a whole number, got {value!r}")
+    if not math.isfinite(float(value)):
+        raise OsmapError(f"{where}{option}: expected a finite number, got {value!r}")
+    lo, hi = f.metadata["lo"], f.metadata["hi"]
+    if not lo <= value <= hi:
+        raise OsmapError(f"{where}{option}: {value!r} is out of range (allowed {lo} to {hi})")
+
+
 @dataclass(frozen=True)
 class SynthOptions:
     """What to synthesize and how. Units: pixels of the output unless stated."""
@@ -37,11 +51,15 @@ class SynthOptions:
     method: str = _spec("osmap", doc="osmap (default pipeline) or paper (the published OS-Map)")
     quality: str = _spec("default", doc="fast, default or high")
     # --- tunables (presets) ---
-    levels: int = _spec(4, 1, 8, "pyramid levels")
+    levels: int = _spec(0, 0, 8, "pyramid levels (0: from the exemplar size, coarsest ~16 px)")
     patch_radius: int = _spec(2, 1, 4, "matching window half-size, in feature vectors")
-    sweeps: int = _spec(3, 0, 20, "coherence sweeps per level")
+    sweeps: int = _spec(6, 0, 20, "coherence sweeps per level")
     coarse_sweeps: int = _spec(8, 0, 40, "coherence sweeps at the coarsest level")
     occupancy: float = _spec(0.5, 0.0, 10.0, "penalty on over-used exemplar regions")
+    seam: float = _spec(1.0, 0.0, 10.0, "penalty on positions that break their neighbours' copy")
+    max_copy: float = _spec(56.0, 0.0, 4096.0, "copy regions wider than this, in output pixels, "
+                            "are broken up (0: off)")
+    blend: int = _spec(2, 0, 8, "seam blending radius when rendering, pixels (0: hard copies)")
     knn: int = _spec(4, 0, 16, "similar-position candidates (k-coherence)")
     random_candidates: int = _spec(4, 0, 16, "PatchMatch random-search candidates")
     feature_dims: int = _spec(16, 1, 32, "appearance-space dimensions")
@@ -76,16 +94,7 @@ class SynthOptions:
                 continue
             if isinstance(f.default, str):
                 continue
-            kind = int if isinstance(f.default, int) else float
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
-                raise OsmapError(f"{option}: expected a number, got {value!r}")
-            if kind is int and float(value) != int(value):
-                raise OsmapError(f"{option}: expected a whole number, got {value!r}")
-            if not math.isfinite(float(value)):
-                raise OsmapError(f"{option}: expected a finite number, got {value!r}")
-            lo, hi = f.metadata["lo"], f.metadata["hi"]
-            if not lo <= value <= hi:
-                raise OsmapError(f"{option}: {value!r} is out of range (allowed {lo} to {hi})")
+            check_number(option, value, f)
         if self.method not in METHODS:
             raise OsmapError(f"--method: {self.method!r} is not one of {', '.join(METHODS)}")
         if self.quality not in QUALITIES:

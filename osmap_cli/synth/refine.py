@@ -7,7 +7,13 @@ import math
 import numpy as np
 
 from osmap_cli.synth.options import SynthOptions
-from osmap_kernels.coherence import RefineParams, knn_table, refine_pass, usage_counts
+from osmap_kernels.coherence import (
+    RefineParams,
+    copy_region_areas,
+    knn_table,
+    refine_pass,
+    usage_counts,
+)
 
 MAX_KNN_REFERENCES = 4096  # positions each exemplar pixel is compared with to find its k-NN
 
@@ -33,11 +39,19 @@ def occupancy(pos: np.ndarray, exemplar_shape, radius: int = 2) -> np.ndarray:
 
 
 def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, sweeps: int,
-           opts: SynthOptions, *, wrap: bool, seed: int, salt: int, progress=None) -> np.ndarray:
+           opts: SynthOptions, *, wrap: bool, seed: int, salt: int, level_scale: int = 1,
+           progress=None) -> np.ndarray:
     """`sweeps` red-black coherence sweeps over pos (H, W, 2); returns the new field."""
     knn = similar_positions(feat, lo, hi, opts.knn)
     if opts.knn == 0:
         knn = knn[:, :, :0]
+    # seam penalty unit: a whole window's feature variance, shared among the 8 neighbours
+    variance = float(np.mean(np.sum(np.square(feat, dtype=np.float64), axis=2)))
+    window = (2 * opts.patch_radius + 1) ** 2
+    seam = float(opts.seam) * variance * window / 8.0
+    # max_copy is a side in finest-level pixels; this level's pixels are level_scale times larger
+    max_area = (opts.max_copy / level_scale) ** 2 if opts.max_copy > 0 else np.inf
+    area = np.zeros(pos.shape[:2], np.float32)
     for sweep in range(sweeps):
         occ = occupancy(pos, feat.shape[:2])
         for parity in (0, 1):
@@ -45,9 +59,12 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
                 radius=opts.patch_radius, lam=float(opts.occupancy), wrap=wrap,
                 lo=np.asarray(lo, np.float64), hi=np.asarray(hi, np.float64),
                 n_random=opts.random_candidates, seed=np.uint64(seed),
-                salt=np.uint64(salt * 1000 + sweep * 2 + parity), parity=parity)
+                salt=np.uint64(salt * 1000 + sweep * 2 + parity), parity=parity,
+                seam=seam, max_area=float(max_area))
+            if math.isfinite(max_area):
+                area = copy_region_areas(pos, jac_field, wrap)
             out = pos.copy()
-            refine_pass(pos, out, feat, jac_field, knn, occ, params)
+            refine_pass(pos, out, feat, jac_field, knn, occ, area, params)
             pos = out
         if progress is not None:
             progress(1)
