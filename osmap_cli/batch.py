@@ -20,7 +20,9 @@ import click
 
 from osmap_cli.errors import OsmapError
 
-__all__ = ["Job", "run_job", "run_jobs"]
+__all__ = ["Job", "batch_options", "check_destination", "claim_output", "expand_inputs",
+           "fill_template", "job_record", "real_paths", "refusal", "run_job", "run_jobs",
+           "skip_or_refuse"]
 
 UV_DESCRIPTION = ("u = exemplar column (x), v = exemplar row (y), in exemplar pixels; "
                   "(0, 0) is the centre of the top-left exemplar pixel")
@@ -52,20 +54,139 @@ class Job:
         paths = [self.output] + [path for _, path in self.withs]
         return paths + ([self.uv_out] if self.uv_out else [])
 
+    def describe(self) -> dict:
+        """The JSON record's job fields (input, outputs, size, seed, options)."""
+        opts = self.options
+        return {"input": self.exemplar, "outputs": self.outputs,
+                "size": [opts.width, opts.height], "seed": opts.seed,
+                "options": {"preset": self.preset, **dataclasses.asdict(opts)}}
 
-def _record(job: Job, status: str, started: float, **more) -> dict:
-    opts = job.options
-    record = {
-        "input": job.exemplar,
-        "outputs": job.outputs,
-        "size": [opts.width, opts.height],
-        "seed": opts.seed,
-        "options": {"preset": job.preset, **dataclasses.asdict(opts)},
-        "seconds": round(time.monotonic() - started, 3),
-        "status": status,
-    }
+    def run(self) -> dict:
+        return run_job(self)
+
+
+def job_record(job, status: str, started: float, **more) -> dict:
+    """A finished job's record: the job's `describe()` fields, seconds, status and MORE.
+
+    Any job type works with run_jobs if it has `exemplar`, `outputs`, `replace`, `refused`,
+    `describe()` and `run()` (which returns this record, or raises OsmapError).
+    """
+    record = {**job.describe(), "seconds": round(time.monotonic() - started, 3),
+              "status": status}
     record.update(more)
     return record
+
+
+
+def skip_or_refuse(job, started: float) -> dict | None:
+    """The "skipped" record when an output exists and the job may not replace it; raises
+    OsmapError when the job is refused; None when it may run."""
+    if not job.replace:
+        existing = [p for p in job.outputs if os.path.lexists(p)]
+        if existing:
+            return job_record(job, "skipped", started,
+                              reason=f"{existing[0]} exists (--overwrite replaces it)")
+    if job.refused:
+        raise OsmapError(job.refused)
+    return None
+
+
+# ---------------------------------------------------------------------------------------------
+# planning: options, inputs, output names, collisions
+
+
+_BATCH_OPTIONS = (
+    click.option("-j", "--jobs", type=click.IntRange(1, 256), default=1, show_default=True,
+                 metavar="N", help="Worker processes running jobs at once (Numba threads "
+                 "split between them); outputs are the same bytes for any N."),
+    click.option("--fail-fast", is_flag=True, help="Stop at the first failed job (running "
+                 "jobs finish; the rest are not started)."),
+    click.option("--json", "json_lines", is_flag=True, help="Print one JSON object per "
+                 "finished job on stdout (input, outputs, size, seed, options, seconds, status) "
+                 "and nothing else there."),
+    click.option("--overwrite", is_flag=True, help="In --out-dir mode, replace existing "
+                 "outputs instead of skipping the job."),
+)
+
+
+def batch_options(function):
+    """Add -j/--jobs, --fail-fast, --json and --overwrite (in that order) to a command."""
+    for option in reversed(_BATCH_OPTIONS):
+        function = option(function)
+    return function
+
+
+def expand_inputs(exemplars) -> list[str]:
+    """The exemplar paths, "-" replaced by the lines of stdin (blank lines skipped)."""
+    inputs: list[str] = []
+    for item in exemplars:
+        if item == "-":
+            text = sys.stdin.read()
+            inputs.extend(line.strip() for line in text.splitlines() if line.strip())
+        else:
+            inputs.append(item)
+    if not inputs:
+        raise click.BadParameter("no exemplar paths (stdin was empty)", param_hint="'EXEMPLAR'")
+    return inputs
+
+
+def fill_template(template: str, fields: dict, hint: str) -> str:
+    """TEMPLATE with {field}s from FIELDS; a bad template is a usage error naming them."""
+    try:
+        return template.format_map(fields)
+    except (KeyError, IndexError, ValueError, AttributeError) as exc:
+        raise click.BadParameter(f"{template!r}: {exc!s} (fields: "
+                                 f"{', '.join('{' + f + '}' for f in fields)})",
+                                 param_hint=hint) from None
+
+
+def check_destination(output, out_dir, count: int, name_template, overwrite) -> None:
+    """Usage errors of -o/--out-dir/--name/--overwrite; creates --out-dir."""
+    if output is not None and out_dir is not None:
+        raise click.UsageError("give either -o/--output (one exemplar) or --out-dir (any "
+                               "number), not both")
+    if output is None and out_dir is None:
+        raise click.UsageError("missing option '-o' / '--output' (or --out-dir DIR for "
+                               "several exemplars)")
+    if output is not None:
+        if count > 1:
+            raise click.UsageError(f"-o names one output but {count} exemplars were "
+                                   "given; use --out-dir DIR (and --name TEMPLATE)")
+        for flag, value in (("--name", name_template), ("--overwrite", overwrite)):
+            if value:
+                raise click.UsageError(f"{flag} works with --out-dir only")
+        return
+    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise OsmapError(f"{out_dir}: --out-dir exists and is not a directory")
+    try:
+        os.makedirs(out_dir, exist_ok=True)
+    except OSError as exc:
+        raise OsmapError(f"{out_dir}: cannot create the output directory "
+                         f"({exc.strerror or exc})") from None
+
+
+def claim_output(owners: dict, path: str, exemplar: str) -> None:
+    """Record that EXEMPLAR writes PATH; two jobs (or one twice) writing it is a usage error."""
+    key = os.path.abspath(path.rstrip("/" + os.sep) or path)
+    if key in owners:
+        other = owners[key]
+        what = "twice" if other == exemplar else f"for {other} and {exemplar}"
+        raise click.UsageError(f"{path}: the same output {what}; make --name unique "
+                               "(e.g. add {index} or {parent})")
+    owners[key] = exemplar
+
+
+def real_paths(paths) -> set[str]:
+    """The resolved paths of the given (None skipped): the inputs no output may replace."""
+    return {os.path.realpath(p) for p in paths if p}
+
+
+def refusal(outputs, input_paths: set[str]) -> str | None:
+    """Why a job must not run: one of OUTPUTS is one of INPUT_PATHS (from real_paths)."""
+    for out in outputs:
+        if os.path.realpath(out.rstrip("/" + os.sep) or out) in input_paths:
+            return f"{out}: refusing to write over an input file"
+    return None
 
 
 def output_depth(output: str, bit_depth: str | None, channels: int, input_depth: int):
@@ -92,13 +213,9 @@ def run_job(job: Job) -> dict:
     Raises OsmapError for a bad input or output (nothing is written then).
     """
     started = time.monotonic()
-    if not job.replace:
-        existing = [p for p in job.outputs if os.path.lexists(p)]
-        if existing:
-            return _record(job, "skipped", started,
-                           reason=f"{existing[0]} exists (--overwrite replaces it)")
-    if job.refused:
-        raise OsmapError(job.refused)
+    skipped = skip_or_refuse(job, started)
+    if skipped is not None:
+        return skipped
 
     from osmap_cli import synth
     from osmap_cli.fields import load_fields
@@ -176,7 +293,7 @@ def run_job(job: Job) -> dict:
     warnings = []
     if fmt == "jpeg" and channels in (2, 4):
         warnings.append(f"{job.output}: JPEG cannot store alpha; the alpha channel was dropped")
-    record = _record(job, "ok", started)
+    record = job_record(job, "ok", started)
     record["_line"] = f"{line} ({record['seconds']:.1f} s)"
     record["_warnings"] = warnings
     return record
@@ -222,20 +339,20 @@ def write_all(items) -> None:
 # running many jobs
 
 
-def _failure(job: Job, message: str, started: float, internal: bool = False) -> dict:
+def _failure(job, message: str, started: float, internal: bool = False) -> dict:
     text = " ".join(str(message).split())
     if job.exemplar not in text:
         text = f"{job.exemplar}: {text}"
-    record = _record(job, "failed", started, error=text)
+    record = job_record(job, "failed", started, error=text)
     record["_internal"] = internal
     return record
 
 
-def _run_caught(job: Job, debug: bool = False) -> dict:
-    """run_job, with every failure turned into a "failed" record (for batches and workers)."""
+def _run_caught(job, debug: bool = False) -> dict:
+    """job.run(), with every failure turned into a "failed" record (for batches and workers)."""
     started = time.monotonic()
     try:
-        return run_job(job)
+        return job.run()
     except OsmapError as exc:
         return _failure(job, str(exc), started)
     except click.UsageError as exc:
@@ -256,7 +373,7 @@ def _init_worker(threads: int) -> None:
         os.environ.setdefault(variable, "1")
 
 
-def _worker_job(job: Job, debug: bool) -> dict:
+def _worker_job(job, debug: bool) -> dict:
     try:
         return _run_caught(job, debug)
     except KeyboardInterrupt:
@@ -291,7 +408,7 @@ class _Reporter:
         sys.stdout.flush()
 
 
-def run_jobs(jobs: list[Job], workers: int = 1, fail_fast: bool = False,
+def run_jobs(jobs: list, workers: int = 1, fail_fast: bool = False,
              json_lines: bool = False, quiet: bool = False, debug: bool = False) -> int:
     """Run the jobs and report each one; returns 0 when none failed, else 1.
 
@@ -301,7 +418,7 @@ def run_jobs(jobs: list[Job], workers: int = 1, fail_fast: bool = False,
     report = _Reporter(json_lines, quiet, debug)
     started = time.monotonic()
     if len(jobs) == 1 and not json_lines:
-        report(run_job(jobs[0]))
+        report(jobs[0].run())
         return 0
     not_run = 0
     if workers <= 1 or len(jobs) == 1:
@@ -324,7 +441,7 @@ def run_jobs(jobs: list[Job], workers: int = 1, fail_fast: bool = False,
     return 1 if failed else 0
 
 
-def _run_pool(jobs: list[Job], workers: int, fail_fast: bool, debug: bool, report) -> int:
+def _run_pool(jobs: list, workers: int, fail_fast: bool, debug: bool, report) -> int:
     """Run jobs in `workers` spawned processes; returns how many were cancelled."""
     import multiprocessing
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait

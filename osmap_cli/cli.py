@@ -25,6 +25,7 @@ import sys
 import click
 
 from osmap_cli import __version__
+from osmap_cli.batch import batch_options
 from osmap_cli.errors import OsmapError
 
 __all__ = ["EXIT_ERROR", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "cli", "main"]
@@ -317,16 +318,7 @@ Examples:
               "--name; an existing output is kept unless --overwrite.")
 @click.option("--name", "name_template", default=None, metavar="TEMPLATE",
               help="Output file name in --out-dir (fields above). [default: {stem}.{ext}]")
-@click.option("-j", "--jobs", type=click.IntRange(1, 256), default=1, show_default=True,
-              metavar="N", help="Worker processes running jobs at once (Numba threads split "
-              "between them); outputs are the same bytes for any N.")
-@click.option("--fail-fast", is_flag=True, help="Stop at the first failed job (running jobs "
-              "finish; the rest are not started).")
-@click.option("--json", "json_lines", is_flag=True, help="Print one JSON object per finished "
-              "job on stdout (input, outputs, size, seed, options, seconds, status) and "
-              "nothing else there.")
-@click.option("--overwrite", is_flag=True, help="In --out-dir mode, replace existing outputs "
-              "instead of skipping the job.")
+@batch_options
 @click.option("--size", type=SizeType(), default=str(DEFAULT_SIZE), show_default=True,
               help="Output size in pixels: WxH (e.g. 512x256) or N for NxN.")
 @click.option("--seed", type=int, default=DEFAULT_SEED, show_default=True,
@@ -409,7 +401,9 @@ def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str |
         raise click.UsageError("--orientation-field and --scale-field need --method osmap")
 
     # 2. the inputs and where their outputs go
-    inputs = _expand_inputs(exemplars)
+    from osmap_cli.batch import expand_inputs
+
+    inputs = expand_inputs(exemplars)
     from osmap_cli.materials import parse_with
 
     withs = []
@@ -421,26 +415,19 @@ def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str |
     if len({w.name for w in withs}) != len(withs):
         raise click.BadParameter("two maps with the same NAME", param_hint="'--with'")
 
-    from osmap_cli.batch import Job, run_jobs
+    from osmap_cli.batch import Job, real_paths, refusal, run_jobs
     from osmap_cli.presets import is_preset_path
 
     preset_name = os.path.basename(preset) if is_preset_path(preset) else preset
     preset_values = None if is_preset_path(preset) else dict(loaded.values)
     plans = _plan_outputs(inputs, output, out_dir, name_template, uv_out, withs, options,
                           preset_name, bit_depth, overwrite)
-    input_paths = set()
-    for path in [*inputs, *(spec.path for _, _, ws, _ in plans for spec, _ in ws),
-                 orientation_field, scale_field]:
-        if path:
-            input_paths.add(os.path.realpath(path))
+    input_paths = real_paths([*inputs, *(spec.path for _, _, ws, _ in plans for spec, _ in ws),
+                              orientation_field, scale_field])
     show_bar = not quiet and jobs == 1 and sys.stderr.isatty()
     job_list = []
     for index, (exemplar, main, maps, uv) in enumerate(plans, 1):
-        refused = None
-        for out in [main, *(o for _, o in maps), *([uv] if uv else [])]:
-            if os.path.realpath(out) in input_paths:
-                refused = f"{out}: refusing to write over an input file"
-                break
+        refused = refusal([main, *(o for _, o in maps), *([uv] if uv else [])], input_paths)
         job_list.append(Job(
             index=index, exemplar=exemplar, output=main, options=options, preset=preset_name,
             preset_values=preset_values, bit_depth=bit_depth, uv_out=uv,
@@ -451,20 +438,6 @@ def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str |
         ))
     return run_jobs(job_list, workers=jobs, fail_fast=fail_fast, json_lines=json_lines,
                     quiet=quiet, debug=_state["debug"])
-
-
-def _expand_inputs(exemplars: tuple[str, ...]) -> list[str]:
-    """The exemplar paths, "-" replaced by the lines of stdin (blank lines skipped)."""
-    inputs: list[str] = []
-    for item in exemplars:
-        if item == "-":
-            text = sys.stdin.read()
-            inputs.extend(line.strip() for line in text.splitlines() if line.strip())
-        else:
-            inputs.append(item)
-    if not inputs:
-        raise click.BadParameter("no exemplar paths (stdin was empty)", param_hint="'EXEMPLAR'")
-    return inputs
 
 
 NAME_FIELDS = ("stem", "name", "ext", "parent", "index", "width", "height", "seed", "preset",
@@ -480,45 +453,17 @@ def _name_fields(exemplar: str, index: int, options, preset_name: str) -> dict:
             "seed": options.seed, "preset": preset_name, "quality": options.quality}
 
 
-def _fill(template: str, fields: dict, hint: str) -> str:
-    try:
-        return template.format_map(fields)
-    except (KeyError, IndexError, ValueError, AttributeError) as exc:
-        raise click.BadParameter(f"{template!r}: {exc!s} (fields: "
-                                 f"{', '.join('{' + f + '}' for f in NAME_FIELDS)})",
-                                 param_hint=hint) from None
-
-
 def _plan_outputs(inputs, output, out_dir, name_template, uv_out, withs, options, preset_name,
                   bit_depth, overwrite):
     """[(exemplar, output, [(WithMap, map output)], uv output)] for every input, checked
     before any work: output paths, formats, bit depths, collisions."""
+    from osmap_cli.batch import check_destination, claim_output, fill_template
     from osmap_cli.imageio import output_format
     from osmap_cli.materials import WithMap, expand_path, with_output_path
 
-    if output is not None and out_dir is not None:
-        raise click.UsageError("give either -o/--output (one exemplar) or --out-dir (any "
-                               "number), not both")
-    if output is None and out_dir is None:
-        raise click.UsageError("missing option '-o' / '--output' (or --out-dir DIR for "
-                               "several exemplars)")
-    if output is not None:
-        if len(inputs) > 1:
-            raise click.UsageError(f"-o names one output but {len(inputs)} exemplars were "
-                                   "given; use --out-dir DIR (and --name TEMPLATE)")
-        for flag, value in (("--name", name_template), ("--overwrite", overwrite)):
-            if value:
-                raise click.UsageError(f"{flag} works with --out-dir only")
     if uv_out is not None and os.path.splitext(uv_out)[1].lower() != ".exr":
         raise click.BadParameter(f"{uv_out}: must be an .exr file", param_hint="'--uv-out'")
-    if out_dir is not None:
-        if os.path.exists(out_dir) and not os.path.isdir(out_dir):
-            raise OsmapError(f"{out_dir}: --out-dir exists and is not a directory")
-        try:
-            os.makedirs(out_dir, exist_ok=True)
-        except OSError as exc:
-            raise OsmapError(f"{out_dir}: cannot create the output directory "
-                             f"({exc.strerror or exc})") from None
+    check_destination(output, out_dir, len(inputs), name_template, overwrite)
 
     plans = []
     owners: dict[str, str] = {}
@@ -526,11 +471,12 @@ def _plan_outputs(inputs, output, out_dir, name_template, uv_out, withs, options
         fields = _name_fields(exemplar, index, options, preset_name)
         if output is not None:
             main = output
-            uv = _fill(uv_out, fields, "'--uv-out'") if uv_out else None
+            uv = fill_template(uv_out, fields, "'--uv-out'") if uv_out else None
         else:
-            main = os.path.join(out_dir, _fill(name_template or "{stem}.{ext}", fields,
-                                               "'--name'"))
-            uv = os.path.join(out_dir, _fill(uv_out, fields, "'--uv-out'")) if uv_out else None
+            main = os.path.join(out_dir, fill_template(name_template or "{stem}.{ext}", fields,
+                                                       "'--name'"))
+            uv = (os.path.join(out_dir, fill_template(uv_out, fields, "'--uv-out'"))
+                  if uv_out else None)
         maps = [(WithMap(w.name, expand_path(w.path, exemplar)), with_output_path(main, w.name))
                 for w in withs]
         output_format(main, None, 1)
@@ -545,13 +491,7 @@ def _plan_outputs(inputs, output, out_dir, name_template, uv_out, withs, options
                                          param_hint="'--uv-out'")
             output_format(uv, 32, 2)
         for path in [main, *(o for _, o in maps), *([uv] if uv else [])]:
-            key = os.path.abspath(path)
-            if key in owners:
-                other = owners[key]
-                what = "twice" if other == exemplar else f"for {other} and {exemplar}"
-                raise click.UsageError(f"{path}: the same output {what}; make --name unique "
-                                       "(e.g. add {index} or {parent})")
-            owners[key] = exemplar
+            claim_output(owners, path, exemplar)
         plans.append((exemplar, main, maps, uv))
     return plans
 

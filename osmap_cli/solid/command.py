@@ -9,15 +9,27 @@ from __future__ import annotations
 import os
 import re
 import sys
-import time
 
 import click
 
+from osmap_cli.batch import batch_options
 from osmap_cli.errors import OsmapError
 
 FORMAT_CHOICES = ("npy", "png", "exr", "atlas", "nrrd")
 
 HELP = """Synthesize a solid texture like EXEMPLAR and write it to OUT.
+
+\b
+Batches: several EXEMPLARs (or '-': paths from stdin, one per line) with
+--out-dir DIR; each volume is named by --name TEMPLATE, fields {stem}
+{name} {in_ext} {parent} {index} {width} {height} {depth} {seed} {preset}
+{quality} and {ext} (the output format's extension: npy, nrrd, png, exr).
+The format is --format, else --name's extension (none: PNG slices), else
+npy. A failing exemplar is one line on stderr and does not stop the others
+(--fail-fast does); an existing output is kept (reported "skipped") unless
+--overwrite; an output that is an input is always refused. --json prints
+one JSON object per finished job on stdout and nothing else. -j N runs N
+jobs at once; the bytes do not depend on N. --x/--y/--z make one volume.
 
 \b
 Every voxel holds three exemplar positions, one per slice family (slices
@@ -58,6 +70,10 @@ file with a [solid] table of tunables (osmap solid does not read the
 Memory: the working set is estimated first; a size that does not fit in
 the available memory (or in OSMAP_MEMORY_LIMIT, e.g. 2G) is refused.
 Same inputs, options and seed give the same bytes with any thread count.
+
+\b
+Exit codes: 0 every job written or skipped, 1 a job failed (bad input,
+unwritable output, runtime failure), 2 usage error, 130 interrupted.
 """
 
 EPILOG = """\b
@@ -67,6 +83,8 @@ Examples:
   osmap solid granite.png -o granite_8x16.png --size 128 --tileable
   osmap solid --x end.png --y side.png --z side.png -o wood.nrrd --size 64
   osmap solid gravel.png -o gravel.npy --size 64 --uv-out gravel_uv.npy --seed 3
+  osmap solid samples/*.png --out-dir vols --format nrrd --size 64 -j 2
+  ls samples/*.png | osmap solid - --out-dir vols --name '{stem}_{depth}.npy' --json
 """
 
 
@@ -96,10 +114,17 @@ class VolumeSize(click.ParamType):
                short_help="Synthesize a solid (3D) texture.",
                context_settings={"help_option_names": ["-h", "--help"],
                                  "max_content_width": 100})
-@click.argument("exemplar", required=False, type=click.Path(path_type=str), metavar="[EXEMPLAR]")
-@click.option("-o", "--output", "output", required=True, type=click.Path(path_type=str),
-              metavar="OUT", help="Output volume: .npy, .nrrd, .png (atlas) or a folder "
-              "(slices). Replaced atomically if it exists.")
+@click.argument("exemplars", nargs=-1, type=click.Path(path_type=str), metavar="[EXEMPLAR...]")
+@click.option("-o", "--output", "output", default=None, type=click.Path(path_type=str),
+              metavar="OUT", help="Output volume (one exemplar): .npy, .nrrd, .png (atlas) or a "
+              "folder (slices). Replaced atomically if it exists.")
+@click.option("--out-dir", type=click.Path(path_type=str), default=None, metavar="DIR",
+              help="Write each exemplar's volume into DIR (created if missing), named by "
+              "--name; an existing output is kept unless --overwrite.")
+@click.option("--name", "name_template", default=None, metavar="TEMPLATE",
+              help="Output name in --out-dir (fields above). [default: {stem}.{ext}; "
+              "{stem} for slice folders]")
+@batch_options
 @click.option("--size", type=VolumeSize(), default="128", show_default=True,
               help="Volume size in voxels: N for NxNxN, or XxYxZ.")
 @click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True,
@@ -116,17 +141,20 @@ class VolumeSize(click.ParamType):
 @click.option("--z", "ex_z", type=click.Path(path_type=str), default=None, metavar="FILE",
               help="Exemplar for the slices normal to z (rows y, cols x).")
 @click.option("--format", "fmt", type=click.Choice(FORMAT_CHOICES), default=None,
-              help="Output format [default: from OUT's extension; a folder: png slices].")
+              help="Output format [default: from OUT's (or --name's) extension; a folder: png "
+              "slices; --out-dir with the default --name: npy].")
 @click.option("--nrrd-encoding", type=click.Choice(("raw", "gzip")), default="raw",
               show_default=True, help="Data encoding of a NRRD output.")
 @click.option("--preview", type=click.Path(path_type=str), default=None, metavar="FILE.png",
-              help="Also write a preview: the cube in isometric view and its centre slices.")
+              help="Also write a preview: the cube in isometric view and its centre slices. "
+              "With --out-dir: a name template in DIR (e.g. '{stem}_preview.png').")
 @click.option("--uv-out", type=click.Path(path_type=str), default=None, metavar="FILE.npy",
-              help="Also write float32 (Z, Y, X, 3): exemplar u (column), v (row), index.")
+              help="Also write float32 (Z, Y, X, 3): exemplar u (column), v (row), index. "
+              "With --out-dir: a name template in DIR (e.g. '{stem}_uv.npy').")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
-def solid_command(exemplar, output, size, seed, preset, quality, tileable, ex_x, ex_y, ex_z,
-                  fmt, nrrd_encoding, preview, uv_out, quiet):
-    started = time.monotonic()
+def solid_command(exemplars, output, out_dir, name_template, jobs, fail_fast, json_lines,
+                  overwrite, size, seed, preset, quality, tileable, ex_x, ex_y, ex_z, fmt,
+                  nrrd_encoding, preview, uv_out, quiet):
     from osmap_cli.solid.options import SolidOptions, load_solid_preset
 
     try:
@@ -140,96 +168,87 @@ def solid_command(exemplar, output, size, seed, preset, quality, tileable, ex_x,
     options = SolidOptions().replace(**loaded.values).replace(
         width=x, height=y, depth=z, seed=seed, quality=quality, tileable=tileable).validated()
 
-    # inputs
+    from osmap_cli.batch import expand_inputs, run_jobs
+    from osmap_cli.solid.jobs import SolidJob
+
     axis_files = [ex_x, ex_y, ex_z]
-    if exemplar is None and None in axis_files:
+    if any(f is not None for f in axis_files):
+        if len(exemplars) > 1 or "-" in exemplars:
+            raise click.UsageError("--x/--y/--z make one volume: give at most one EXEMPLAR")
+        if not exemplars and None in axis_files:
+            raise click.UsageError("give EXEMPLAR, or all three of --x, --y and --z")
+        base = exemplars[0] if exemplars else ex_x
+        sets = [(base, tuple(f if f is not None else base for f in axis_files))]
+    elif not exemplars:
         raise click.UsageError("give EXEMPLAR, or all three of --x, --y and --z")
-    from osmap_cli.imageio import read_image
-
-    if all(f is None for f in axis_files):
-        images = [read_image(exemplar)]
-        names = [exemplar]
     else:
-        files = [f if f is not None else exemplar for f in axis_files]
-        cache = {}
-        for f in files:
-            if f not in cache:
-                cache[f] = read_image(f)
-        images = [cache[f] for f in files]
-        names = files
-        channels = {im.pixels.shape[2] for im in images}
-        if len(channels) != 1:
-            counts = ", ".join(f"{n}: {im.pixels.shape[2]}" for n, im in zip(names, images))
-            raise OsmapError(f"per-axis exemplars need the same number of channels ({counts})")
-    for name, im in zip(names, images):
-        if min(im.pixels.shape[:2]) < 8:
-            raise OsmapError(f"{name}: exemplar is smaller than 8x8 pixels")
+        sets = [(path, (path,)) for path in expand_inputs(exemplars)]
 
-    # outputs, checked before any work
+    plans = _plan_outputs(sets, output, out_dir, name_template, fmt, preview, uv_out, overwrite,
+                          options, loaded.name)
+    show_bar = not quiet and jobs == 1 and sys.stderr.isatty()
+    from osmap_cli.batch import real_paths, refusal
+
+    inputs = real_paths(f for _, files in sets for f in files)
+
+    job_list = [SolidJob(
+        index=index, exemplar=base, files=files, output=main, kind=kind, options=options,
+        preset=loaded.name, nrrd_encoding=nrrd_encoding, preview=prev, uv_out=uv,
+        replace=output is not None or overwrite,
+        refused=refusal([main, *(p for p in (uv, prev) if p)], inputs), progress=show_bar,
+    ) for index, ((base, files), (main, kind, prev, uv)) in enumerate(zip(sets, plans), 1)]
+    from osmap_cli.cli import _state
+
+    return run_jobs(job_list, workers=jobs, fail_fast=fail_fast, json_lines=json_lines,
+                    quiet=quiet, debug=_state["debug"])
+
+
+def _plan_outputs(sets, output, out_dir, name_template, fmt, preview, uv_out, overwrite,
+                  options, preset_name):
+    """[(volume output, format, preview, uv output)] per job, checked before any work."""
+    from osmap_cli.batch import check_destination, claim_output, fill_template
     from osmap_cli.solid import volumeio
+    from osmap_cli.solid.jobs import default_name
 
-    kind = volumeio.format_for(output, fmt)
-    volumeio.check_target(output, kind)
-    channels = images[0].pixels.shape[2]
-    depth = 16 if max(im.bit_depth for im in images) >= 16 else 8
-    if kind in ("png", "atlas") and channels > 4:
-        raise OsmapError(f"{output}: PNG stores at most 4 channels, the exemplar has {channels}; "
-                         "use --format exr, npy or nrrd")
-    if kind == "atlas":
-        volumeio.atlas_grid(output, z)
-    targets = [os.path.abspath(output.rstrip("/" + os.sep))]
     for flag, path, ext in (("--preview", preview, ".png"), ("--uv-out", uv_out, ".npy")):
-        if path is None:
-            continue
-        if os.path.splitext(path)[1].lower() != ext:
+        if path is not None and os.path.splitext(path)[1].lower() != ext:
             raise click.BadParameter(f"{path}: must be a {ext} file", param_hint=f"'{flag}'")
-        if os.path.abspath(path) in targets:
-            raise click.BadParameter(f"{path}: is the same file as another output",
-                                     param_hint=f"'{flag}'")
-        targets.append(os.path.abspath(path))
-        volumeio.check_target(path, "npy")
-
-    from osmap_cli.solid.memory import check_memory
-
-    check_memory(options.shape, channels, options.feature_dims)
-
-    # the work
-    from osmap_cli.progress import ProgressBar
-    from osmap_cli.solid.pipeline import synthesize_solid
-
-    show_bar = not quiet and sys.stderr.isatty()
-    with ProgressBar(enabled=show_bar, desc="osmap solid") as progress:
-        result = synthesize_solid([im.pixels for im in images], options, progress=progress)
-
-    # the outputs, all or nothing
-    metadata = provenance(options, loaded.name, names)
-    staged = []
-    try:
-        staged.append(volumeio.stage_volume(
-            output, result.voxels, kind, depth=depth, channel_names=images[0].channel_names,
-            metadata=metadata, encoding=nrrd_encoding))
-        if uv_out is not None:
-            staged.append(volumeio.stage_npy(uv_out, result.uv()))
-        if preview is not None:
-            staged.append(_stage_preview(preview, result.voxels, metadata))
-        volumeio.commit(staged)
-        staged = []
-    finally:
-        volumeio.discard(staged)
-
-    if not quiet:
-        line = f"wrote {output}: {x}x{y}x{z} voxels, {channels} channel" \
-               f"{'s' * (channels != 1)}, {kind}"
-        if kind == "atlas":
-            cols, rows = volumeio.atlas_grid(output, z)
-            line += f" {cols}x{rows}"
-        extras = [p for p in (uv_out, preview) if p is not None]
-        if extras:
-            line += "; also " + ", ".join(extras)
-        click.echo(f"{line} ({time.monotonic() - started:.1f} s)")
+    check_destination(output, out_dir, len(sets), name_template, overwrite)
+    template, ext = default_name(fmt or "npy")
+    plans = []
+    owners: dict[str, str] = {}
+    for index, (base, _) in enumerate(sets, 1):
+        if output is not None:
+            main, prev, uv = output, preview, uv_out
+        else:
+            stem, in_ext = os.path.splitext(os.path.basename(base))
+            fields = {"stem": stem, "name": os.path.basename(base), "ext": ext,
+                      "in_ext": in_ext.lstrip(".").lower(),
+                      "parent": os.path.basename(os.path.dirname(os.path.abspath(base))),
+                      "index": index, "width": options.width, "height": options.height,
+                      "depth": options.depth, "seed": options.seed, "preset": preset_name,
+                      "quality": options.quality}
+            main = os.path.join(out_dir, fill_template(name_template or template, fields,
+                                                       "'--name'"))
+            prev, uv = (os.path.join(out_dir, fill_template(p, fields, hint)) if p else None
+                        for p, hint in ((preview, "'--preview'"), (uv_out, "'--uv-out'")))
+        kind = volumeio.format_for(main, fmt)
+        targets = [os.path.abspath(main.rstrip("/" + os.sep))]
+        for flag, path in (("--preview", prev), ("--uv-out", uv)):
+            if path is None:
+                continue
+            if os.path.abspath(path) in targets:
+                raise click.BadParameter(f"{path}: is the same file as another output",
+                                         param_hint=f"'{flag}'")
+            targets.append(os.path.abspath(path))
+        for path in (main, prev, uv):
+            if path is not None:
+                claim_output(owners, path, base)
+        plans.append((main, kind, prev, uv))
+    return plans
 
 
-def _stage_preview(path, voxels, metadata):
+def stage_preview(path, voxels, metadata):
     from osmap_cli.imageio import write_image
     from osmap_cli.solid.preview import render_preview
     from osmap_cli.solid.volumeio import Staged, _temp_for
