@@ -529,7 +529,12 @@ def test_ctrl_c_exits_130_without_output(run_cli, small_samples, tmp_path, monke
     assert _listing(tmp_path) == []
 
 
-def test_sigint_on_a_real_run(osmap_exe, samples, tmp_path):
+def test_sigint_on_a_real_run(osmap_exe, samples, tmp_path, tmp_path_factory):
+    # compile the kernels first (a fresh clone has no Numba cache): the interrupt is meant to
+    # land in the run itself, not in a first-ever compilation
+    warm = tmp_path_factory.mktemp("warm") / "warm.png"
+    subprocess.run([osmap_exe, "synth", str(samples / "cells.png"), "-o", str(warm), "--size",
+                    "16", "--method", "paper", "--quiet"], check=True, timeout=600)
     process = subprocess.Popen(
         [osmap_exe, "synth", str(samples / "cells.png"), "-o", str(tmp_path / "big.png"),
          "--size", "512", "--method", "paper"],
