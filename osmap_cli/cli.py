@@ -17,6 +17,7 @@ the Python traceback.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 import re
@@ -638,6 +639,31 @@ def main(argv: list[str] | None = None) -> int:
     for variable in _SINGLE_THREADED_BLAS:
         os.environ.setdefault(variable, "1")
     _state["debug"] = os.environ.get("OSMAP_DEBUG", "").strip().lower() in ("1", "true", "yes")
+    with _latched_interrupts():
+        return _main(argv)
+
+
+@contextlib.contextmanager
+def _latched_interrupts():
+    """progress.latch_interrupts for the duration of a command (main thread only)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    from osmap_cli import progress
+
+    previous = signal.getsignal(signal.SIGINT)
+    progress.latch_interrupts()
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        progress.reset_interrupt()
+
+
+def _main(argv: list[str] | None) -> int:
     try:
         result = cli.main(args=argv, prog_name="osmap", standalone_mode=False)
     except OsmapError as exc:

@@ -13,9 +13,29 @@ from __future__ import annotations
 
 import sys
 
-__all__ = ["ProgressBar"]
+__all__ = ["ProgressBar", "latch_interrupts", "reset_interrupt"]
 
 _STEPS = 1000  # bar resolution: 0.1 %
+_interrupted = [False]
+
+
+def latch_interrupts() -> None:
+    """Make Ctrl-C stick: the SIGINT handler raises KeyboardInterrupt as usual and also sets a
+    flag that the next progress call raises on, so an interrupt that lands inside a library
+    which swallows it (Numba compiling a kernel on the first run) still stops the job there.
+    Call from the main thread."""
+    import signal
+
+    def handler(signum, frame):
+        _interrupted[0] = True
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, handler)
+
+
+def reset_interrupt() -> None:
+    """Forget a latched Ctrl-C (for callers that run several commands in one process)."""
+    _interrupted[0] = False
 
 
 class ProgressBar:
@@ -37,6 +57,8 @@ class ProgressBar:
             )
 
     def __call__(self, fraction: float) -> None:
+        if _interrupted[0]:
+            raise KeyboardInterrupt
         fraction = float(fraction)
         if not fraction > 0.0:  # also ignores NaN
             return
