@@ -219,28 +219,12 @@ def _apply_volume(uv: str, maps: tuple[str, ...], output: str, normal: bool | No
 
 
 def _write_volume(output: str, volume: np.ndarray, metadata: dict) -> None:
-    import secrets
-
     from osmap_cli import __version__
+    from osmap_cli.solid import volumeio
 
-    directory, base = os.path.split(os.path.abspath(output))
-    if not os.path.isdir(directory):
+    if not os.path.isdir(os.path.dirname(os.path.abspath(output))):
         raise OsmapError(f"{output}: output directory does not exist")
-    temp = os.path.join(directory, f".{base}.osmap-{secrets.token_hex(6)}")
-    try:
-        if output.lower().endswith(".npy"):
-            with open(temp, "wb") as handle:
-                np.save(handle, volume)
-        else:
-            from osmap_cli.solid.volumeio import nrrd_bytes
-
-            meta = {"software": f"osmap {__version__}", "osmap_version": __version__,
-                    **metadata}
-            with open(temp, "wb") as handle:
-                handle.write(nrrd_bytes(volume, meta))
-        os.replace(temp, output)
-    except OSError as exc:
-        raise OsmapError(f"{output}: cannot write file ({exc.strerror or exc})") from None
-    finally:
-        if os.path.exists(temp):
-            os.remove(temp)
+    fmt = "npy" if output.lower().endswith(".npy") else "nrrd"
+    meta = {"software": f"osmap {__version__}", "osmap_version": __version__, **metadata}
+    volumeio.commit([volumeio.stage_volume(output, volume, fmt, depth=32, channel_names=None,
+                                           metadata=meta)])

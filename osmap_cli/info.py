@@ -79,9 +79,11 @@ def read_provenance(path: str) -> dict[str, str]:
     if not os.path.isfile(path):
         raise OsmapError(f"{path}: no such file")
     with open(path, "rb") as handle:
-        head = handle.read(4)
-    if head == b"NRRD":
-        return read_nrrd_fields(path)
+        if handle.read(4) == b"NRRD":
+            from osmap_cli.solid.volumeio import read_nrrd_header
+
+            handle.seek(0)
+            return read_nrrd_header(handle, path)[1]
     if path.lower().endswith(".npy"):
         raise OsmapError(f"{path}: .npy files cannot store metadata (no provenance)")
     from osmap_cli.imageio import read_metadata
@@ -89,17 +91,3 @@ def read_provenance(path: str) -> dict[str, str]:
     return read_metadata(path)
 
 
-def read_nrrd_fields(path: str) -> dict[str, str]:
-    """The ``osmap:KEY:=VALUE`` key/value lines of a NRRD header (the header only is read)."""
-    meta: dict[str, str] = {}
-    with open(path, "rb") as handle:
-        for raw in handle:
-            line = raw.rstrip(b"\r\n")
-            if not line:
-                break  # end of the header
-            text = line.decode("utf-8", "replace")
-            if ":=" in text and not text.startswith("#"):
-                key, value = text.split(":=", 1)
-                if key.startswith("osmap:"):
-                    meta[key[len("osmap:"):]] = value
-    return meta

@@ -132,29 +132,36 @@ def nrrd_bytes(volume: np.ndarray, metadata: dict, encoding: str = "raw") -> byt
     return ("\n".join(lines) + "\n\n").encode("utf-8") + payload
 
 
-def read_nrrd(path: str) -> tuple[np.ndarray, dict]:
-    """(volume (Z, Y, X, C) float32, osmap metadata) from a NRRD file written by nrrd_bytes
-    (also reads uint8/uint16/float NRRDs of the same layout)."""
-    with open(path, "rb") as handle:
-        data = handle.read()
-    end = data.find(b"\n\n")
-    if not data.startswith(b"NRRD") or end < 0:
+def read_nrrd_header(handle, path: str) -> tuple[dict, dict]:
+    """(NRRD fields, osmap metadata) of an open NRRD file; leaves it at the payload."""
+    if handle.readline().rstrip(b"\r\n")[:4] != b"NRRD":
         raise OsmapError(f"{path}: not a NRRD file")
     fields, meta = {}, {}
-    for line in data[:end].decode("utf-8").splitlines()[1:]:
+    for raw in handle:
+        line = raw.rstrip(b"\r\n").decode("utf-8", "replace")
+        if not line:
+            return fields, meta  # the blank line ends the header
         if line.startswith("#"):
             continue
         if ":=" in line:
             key, value = line.split(":=", 1)
             if key.startswith(META_PREFIX):
                 meta[key[len(META_PREFIX):]] = value
-            continue
-        key, value = line.split(":", 1)
-        fields[key.strip()] = value.strip()
+        elif ":" in line:
+            key, value = line.split(":", 1)
+            fields[key.strip()] = value.strip()
+    raise OsmapError(f"{path}: not a NRRD file (the header does not end)")
+
+
+def read_nrrd(path: str) -> tuple[np.ndarray, dict]:
+    """(volume (Z, Y, X, C) float32, osmap metadata) from a NRRD file written by nrrd_bytes
+    (also reads uint8/uint16/float NRRDs of the same layout)."""
+    with open(path, "rb") as handle:
+        fields, meta = read_nrrd_header(handle, path)
+        payload = handle.read()
     sizes = [int(s) for s in fields["sizes"].split()]
     dtype = {"float": "<f4", "uint8": "u1", "uchar": "u1", "unsigned char": "u1",
              "uint16": "<u2", "ushort": "<u2"}[fields["type"]]
-    payload = data[end + 2:]
     if fields.get("encoding") in ("gzip", "gz"):
         payload = gzip.decompress(payload)
     array = np.frombuffer(payload, dtype).astype(np.float32)

@@ -8,9 +8,9 @@ from osmap_kernels.coherence import vote_image
 def render_settings(options) -> tuple[bool, int]:
     """(wrap, blend) that `synthesize` rendered with: needed to render other maps the same way.
     `options` is SynthOptions or its recorded dict (osmap info's "options")."""
-    get = options.get if isinstance(options, dict) else (lambda k, d=None: getattr(options, k, d))
-    blend = int(get("blend", 0)) if get("method", "osmap") == "osmap" else 0
-    return bool(get("tileable", False)), blend
+    values = options if isinstance(options, dict) else vars(options)
+    blend = int(values.get("blend", 0)) if values.get("method", "osmap") == "osmap" else 0
+    return bool(values.get("tileable", False)), blend
 
 
 def render(exemplar: np.ndarray, pos: np.ndarray, jac_field: np.ndarray | None = None,
