@@ -1,0 +1,308 @@
+"""Copy regions of a position field: labelling, areas, and whole-region shifts.
+
+A copy region is a 4-connected set of output pixels whose exemplar positions continue each other
+(S[q] - S[p] == J (q - p)): a verbatim copy of part of the exemplar. Pixel-wise refinement moves
+the borders between copies but never the copies themselves: a copy's offset is fixed where it
+first appears, at a coarse level. `align_regions` moves whole copies by a few pixels where that
+makes their borders match better, as image quilting chooses each block's offset by its overlap.
+"""
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+
+from osmap_kernels.coherence import EIGHT_NEIGHBOURS, _neighbour, _sample
+
+# Parameters of one alignment pass.
+#   radius    int64    matching window half-size, as in RefineParams
+#   wrap      bool     output is toroidal (tileable)
+#   lo, hi    float64[2] valid exemplar positions
+#   seam      float64  cost per 8-neighbour whose position does not continue a pixel's
+#   max_area  float64  a shift may not merge two copies into one larger than this (pixels)
+#   reach     int64    shifts tried: every (dy, dx) with |dy|, |dx| <= reach
+AlignParams = namedtuple("AlignParams", "radius wrap lo hi seam max_area reach")
+
+
+@njit(cache=True)
+def _find(parent, i):
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@njit(cache=True)
+def copy_region_labels(pos, jac, wrap):
+    """Label of every pixel's copy region: the scan index of its first pixel. int64[H, W]."""
+    H, W = pos.shape[0], pos.shape[1]
+    parent = np.arange(H * W)
+    for y in range(H):
+        for x in range(W):
+            for step in range(2):
+                dy = 1 if step == 0 else 0
+                dx = 1 - dy
+                qy = y + dy
+                qx = x + dx
+                if qy >= H or qx >= W:
+                    if not wrap:
+                        continue
+                    qy %= H
+                    qx %= W
+                J = jac[y, x]
+                ey = pos[qy, qx, 0] - pos[y, x, 0] - (J[0, 0] * dy + J[0, 1] * dx)
+                ex = pos[qy, qx, 1] - pos[y, x, 1] - (J[1, 0] * dy + J[1, 1] * dx)
+                if abs(ey) < 1e-3 and abs(ex) < 1e-3:
+                    a = _find(parent, y * W + x)
+                    b = _find(parent, qy * W + qx)
+                    if a != b:
+                        parent[max(a, b)] = min(a, b)
+    labels = np.empty((H, W), np.int64)
+    for y in range(H):
+        for x in range(W):
+            labels[y, x] = _find(parent, y * W + x)
+    return labels
+
+
+@njit(cache=True)
+def copy_region_areas(pos, jac, wrap):
+    """Area of the verbatim-copy region around every pixel (see copy_region_labels).
+    float32[H, W]."""
+    labels = copy_region_labels(pos, jac, wrap)
+    counts = np.bincount(labels.ravel())
+    out = np.empty(labels.shape, np.float32)
+    for y in range(labels.shape[0]):
+        for x in range(labels.shape[1]):
+            out[y, x] = counts[labels[y, x]]
+    return out
+
+
+@njit(cache=True)
+def _border_pixels(labels, radius, wrap):
+    """(region, pixel) pairs, sorted by region: pixel b is on region R's border when b's
+    matching window holds pixels of R and of another region, i.e. when shifting R changes b's
+    cost."""
+    H, W = labels.shape
+    side = 2 * radius + 1
+    out_region = np.empty(H * W * 4, np.int64)
+    out_pixel = np.empty(H * W * 4, np.int64)
+    found = np.empty(side * side, np.int64)
+    n = 0
+    for y in range(H):
+        for x in range(W):
+            n_found = 0
+            for dy in range(-radius, radius + 1):
+                for dx in range(-radius, radius + 1):
+                    qy, qx, inside = _neighbour(y, x, dy, dx, H, W, wrap)
+                    if not inside:
+                        continue
+                    label = labels[qy, qx]
+                    new = True
+                    for j in range(n_found):
+                        if found[j] == label:
+                            new = False
+                    if new:
+                        found[n_found] = label
+                        n_found += 1
+            if n_found < 2:
+                continue
+            if n + n_found > out_region.shape[0]:
+                out_region = np.concatenate((out_region, np.empty_like(out_region)))
+                out_pixel = np.concatenate((out_pixel, np.empty_like(out_pixel)))
+            for j in range(n_found):
+                out_region[n] = found[j]
+                out_pixel[n] = y * W + x
+                n += 1
+    order = np.argsort(out_region[:n], kind="mergesort")
+    return out_region[:n][order], out_pixel[:n][order]
+
+
+@njit(cache=True)
+def _border_terms(pos, labels, group, area, feat, jac, border, region, p):
+    """The border cost terms that change when `region` moves by a shift d, in a form that
+    costs each shift cheaply: matching terms |fixed - feat(base + d)|^2 (a pixel of the region
+    against one outside it, in either role), and seam terms that vanish when d == target (the
+    shift that makes a pair of 8-neighbours across the border continue each other), with the
+    region on the other side, flagged when that would merge two copies into one larger than
+    p.max_area (group, area: the copies merged so far and their areas)."""
+    H, W = pos.shape[0], pos.shape[1]
+    nf = feat.shape[2]
+    r = p.radius
+    n_max = border.shape[0] * (2 * r + 1) ** 2
+    fixed = np.empty((n_max, nf))
+    base = np.empty((n_max, 2))
+    target = np.empty((border.shape[0] * 8, 2))
+    merges = np.empty(border.shape[0] * 8, np.bool_)
+    others = np.empty(border.shape[0] * 8, np.int64)
+    buf = np.empty(nf)
+    n = 0
+    m = 0
+    for b in border:
+        y = b // W
+        x = b - y * W
+        J = jac[y, x]
+        inner = labels[y, x] == region
+        for dy in range(-r, r + 1):
+            for dx in range(-r, r + 1):
+                qy, qx, inside = _neighbour(y, x, dy, dx, H, W, p.wrap)
+                if not inside or (labels[qy, qx] == region) == inner:
+                    continue
+                ey = pos[y, x, 0] + J[0, 0] * dy + J[0, 1] * dx
+                ex = pos[y, x, 1] + J[1, 0] * dy + J[1, 1] * dx
+                if inner:  # the window's centre moves, its outside neighbour stays
+                    _sample(feat, pos[qy, qx, 0], pos[qy, qx, 1], buf)
+                    base[n, 0] = ey
+                    base[n, 1] = ex
+                else:
+                    _sample(feat, ey, ex, buf)
+                    base[n, 0] = pos[qy, qx, 0]
+                    base[n, 1] = pos[qy, qx, 1]
+                for f in range(nf):
+                    fixed[n, f] = buf[f]
+                n += 1
+        for k in range(8):
+            dy, dx = EIGHT_NEIGHBOURS[k, 0], EIGHT_NEIGHBOURS[k, 1]
+            qy, qx, inside = _neighbour(y, x, dy, dx, H, W, p.wrap)
+            if not inside or (labels[qy, qx] == region) == inner:
+                continue
+            ey = pos[qy, qx, 0] - pos[y, x, 0] - (J[0, 0] * dy + J[0, 1] * dx)
+            ex = pos[qy, qx, 1] - pos[y, x, 1] - (J[1, 0] * dy + J[1, 1] * dx)
+            sign = 1.0 if inner else -1.0
+            target[m, 0] = sign * ey
+            target[m, 1] = sign * ex
+            here = _find(group, labels[y, x])
+            there = _find(group, labels[qy, qx])
+            merges[m] = here != there and area[here] + area[there] > p.max_area
+            others[m] = labels[qy, qx] if inner else labels[y, x]
+            m += 1
+    return fixed[:n], base[:n], target[:m], merges[:m], others[:m]
+
+
+@njit(cache=True)
+def _shift_cost(feat, fixed, base, target, merges, sy, sx, seam, limit):
+    """Cost of the border terms with the region moved by (sy, sx): inf for a forbidden merge
+    or once the cost reaches `limit`."""
+    moved = sy != 0 or sx != 0
+    total = 0.0
+    for m in range(target.shape[0]):
+        if abs(sy - target[m, 0]) > 1e-3 or abs(sx - target[m, 1]) > 1e-3:
+            total += seam
+        elif moved and merges[m]:
+            return np.inf
+    nf = feat.shape[2]
+    buf = np.empty(nf)
+    for n in range(fixed.shape[0]):
+        _sample(feat, base[n, 0] + sy, base[n, 1] + sx, buf)
+        for f in range(nf):
+            diff = fixed[n, f] - buf[f]
+            total += diff * diff
+        if total >= limit:
+            return np.inf
+    return total
+
+
+@njit(cache=True)
+def _shifts_by_length(reach):
+    """Every (dy, dx) with |dy|, |dx| <= reach, shortest first (ties in scan order), so that
+    among equally good shifts the smallest wins; (0, 0) first."""
+    side = 2 * reach + 1
+    shifts = np.empty((side * side, 2), np.int64)
+    lengths = np.empty(side * side, np.int64)
+    for j in range(side * side):
+        shifts[j, 0] = j // side - reach
+        shifts[j, 1] = j % side - reach
+        lengths[j] = shifts[j, 0] ** 2 + shifts[j, 1] ** 2
+    return shifts[np.argsort(lengths, kind="mergesort")]
+
+
+@njit(cache=True)
+def _best_shift(feat, fixed, base, target, merges, shifts, lo_pos, hi_pos, p):
+    """Index into shifts of the cheapest shift that keeps the region's positions (extent lo_pos
+    to hi_pos) inside [p.lo, p.hi]; 0 (no shift) unless another is strictly cheaper."""
+    best = 0
+    best_cost = _shift_cost(feat, fixed, base, target, merges, 0, 0, p.seam, np.inf)
+    for j in range(1, shifts.shape[0]):
+        sy, sx = shifts[j, 0], shifts[j, 1]
+        if (lo_pos[0] + sy < p.lo[0] or hi_pos[0] + sy > p.hi[0]
+                or lo_pos[1] + sx < p.lo[1] or hi_pos[1] + sx > p.hi[1]):
+            continue
+        cost = _shift_cost(feat, fixed, base, target, merges, sy, sx, p.seam, best_cost)
+        if cost < best_cost:
+            best, best_cost = j, cost
+    return best
+
+
+@njit(cache=True)
+def _region_extents(pos, labels):
+    """Per label, the smallest and largest exemplar position of its pixels: float64[H*W, 2] x 2."""
+    H, W = labels.shape
+    lo_pos = np.full((H * W, 2), np.inf)
+    hi_pos = np.full((H * W, 2), -np.inf)
+    for y in range(H):
+        for x in range(W):
+            label = labels[y, x]
+            for c in range(2):
+                lo_pos[label, c] = min(lo_pos[label, c], pos[y, x, c])
+                hi_pos[label, c] = max(hi_pos[label, c], pos[y, x, c])
+    return lo_pos, hi_pos
+
+
+@njit(cache=True)
+def _region_starts(regions):
+    """Start index of each run of equal labels in the sorted `regions`, and the end."""
+    starts = [0]
+    for i in range(1, regions.shape[0]):
+        if regions[i] != regions[i - 1]:
+            starts.append(i)
+    starts.append(regions.shape[0])
+    return np.array(starts, np.int64)
+
+
+@njit(cache=True)
+def align_regions(pos, feat, jac, p):
+    """Move whole copy regions, one at a time in label order, by the shift within p.reach that
+    most lowers the matching and seam cost of their borders (none if no shift does). A shift
+    may merge copies (make them continue each other) only up to p.max_area.
+
+    pos float32[H, W, 2] positions, feat float32[h, w, F] exemplar appearance, jac float32[H, W,
+    2, 2] output-to-exemplar Jacobian. Returns the new positions; pos is not modified.
+    """
+    pos = pos.copy()
+    H, W = pos.shape[0], pos.shape[1]
+    labels = copy_region_labels(pos, jac, p.wrap)
+    regions, pixels = _border_pixels(labels, p.radius, p.wrap)
+    if regions.shape[0] == 0:
+        return pos
+    starts = _region_starts(regions)
+    lo_pos, hi_pos = _region_extents(pos, labels)
+    flat = labels.ravel()
+    area = np.bincount(flat, minlength=H * W).astype(np.float64)
+    group = np.arange(H * W)  # copies merged by this pass's shifts (union-find over labels)
+    members = np.argsort(flat, kind="mergesort")
+    member_labels = flat[members]
+    shifts = _shifts_by_length(p.reach)
+    for i in range(starts.shape[0] - 1):
+        region = regions[starts[i]]
+        border = pixels[starts[i]:starts[i + 1]]
+        fixed, base, target, merges, others = _border_terms(pos, labels, group, area, feat, jac,
+                                                            border, region, p)
+        j = _best_shift(feat, fixed, base, target, merges, shifts, lo_pos[region],
+                        hi_pos[region], p)
+        if j == 0:
+            continue
+        sy, sx = shifts[j, 0], shifts[j, 1]
+        m = np.searchsorted(member_labels, region)
+        while m < H * W and member_labels[m] == region:
+            y = members[m] // W
+            x = members[m] - y * W
+            pos[y, x, 0] += sy
+            pos[y, x, 1] += sx
+            m += 1
+        for m in range(target.shape[0]):  # the copies it now continues are one copy
+            if abs(target[m, 0] - sy) <= 1e-3 and abs(target[m, 1] - sx) <= 1e-3:
+                a = _find(group, region)
+                b = _find(group, others[m])
+                if a != b:
+                    group[max(a, b)] = min(a, b)
+                    area[min(a, b)] += area[max(a, b)]
+    return pos
