@@ -2,8 +2,11 @@
 
 One kernel, specialised by the parameter record rather than copied: the same loop serves the
 classic Kohonen SOM, the paper's OS-Map, and our extensions (coherent targets, range kernel,
-periodic data components). Everything random (inputs, window positions) and the schedule values
-are computed by the caller, so the kernel is a pure function of its arrays and is deterministic.
+periodic data components). The one specialisation is `update_classic`: for Kohonen's update
+(target x, nothing else) each row of nodes is updated in a loop the compiler vectorises, with
+the general loop's arithmetic, so the weights are the same bit for bit. Everything random
+(inputs, window positions) and the schedule values are computed by the caller, so the kernel is
+a pure function of its arrays and is deterministic.
 
 Map nodes live on a grid padded to three axes (a 2D map of shape (H, W) is (1, H, W)); node i has
 grid coordinates (i // (g1*g2), (i // g2) % g1, i % g2). D is the map-space vector from the winner
@@ -86,9 +89,8 @@ def _node_dist(weights, i, x, periods):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _run_dists(weights, i0, n, x, periods, out):
-    """out[j] = squared distance from x to node i0 + j, j < n, summed over k in the same order
-    as `_node_dist` (so the values are identical); component-major so the loops vectorise."""
+def _row_dists(weights, i0, n, x, periods, out):
+    """`_run_dists` indexing the 2D weights: less set-up, the faster for short runs."""
     d = weights.shape[1]
     if d == 2 and periods[0] == 0.0 and periods[1] == 0.0:
         x0, x1 = x[0], x[1]  # unrolled: the common 2D case vectorises across nodes
@@ -121,12 +123,118 @@ def _run_dists(weights, i0, n, x, periods, out):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _run_dists(flat, d, i0, n, x, periods, out):
+    """out[j] = squared distance from x to node i0 + j, j < n, summed over k in the same order
+    as `_node_dist` (so the values are identical). `flat` is the weights as one C-order vector:
+    a slice of it indexed from 0 lets the loops vectorise across nodes (2D indexing does not)."""
+    w = flat[i0 * d:(i0 + n) * d]
+    if d == 2 and periods[0] == 0.0 and periods[1] == 0.0:
+        x0, x1 = x[0], x[1]  # unrolled: the common 2D and 3D cases
+        for j in range(n):
+            e0 = x0 - w[2 * j]
+            e1 = x1 - w[2 * j + 1]
+            out[j] = 0.0 + e0 * e0 + e1 * e1
+        return
+    if d == 3 and periods[0] == 0.0 and periods[1] == 0.0 and periods[2] == 0.0:
+        x0, x1, x2 = x[0], x[1], x[2]
+        for j in range(n):
+            e0 = x0 - w[3 * j]
+            e1 = x1 - w[3 * j + 1]
+            e2 = x2 - w[3 * j + 2]
+            out[j] = 0.0 + e0 * e0 + e1 * e1 + e2 * e2
+        return
+    for j in range(n):
+        out[j] = 0.0
+    for k in range(d):
+        xk = x[k]
+        period = periods[k]
+        if period > 0.0:
+            for j in range(n):
+                diff = _wrapped_diff(xk - w[j * d + k], period)
+                out[j] += diff * diff
+        else:
+            for j in range(n):
+                diff = xk - w[j * d + k]
+                out[j] += diff * diff
+
+
+SHORT_UPDATE = 8  # shorter runs of the classic update go node by node
+LONG_RUN = 256  # windows of whole rows with at least this many nodes a plane: block-wise scan
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _block_min(out, n):
+    """Smallest of out[:n]: eight independent running minima, so the loop vectorises (a single
+    running minimum is a serial dependency chain). Exact: a minimum does not round."""
+    a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = np.inf
+    j = 0
+    while j + 8 <= n:
+        v0, v1, v2, v3 = out[j], out[j + 1], out[j + 2], out[j + 3]
+        v4, v5, v6, v7 = out[j + 4], out[j + 5], out[j + 6], out[j + 7]
+        a0 = v0 if v0 < a0 else a0
+        a1 = v1 if v1 < a1 else a1
+        a2 = v2 if v2 < a2 else a2
+        a3 = v3 if v3 < a3 else a3
+        a4 = v4 if v4 < a4 else a4
+        a5 = v5 if v5 < a5 else a5
+        a6 = v6 if v6 < a6 else a6
+        a7 = v7 if v7 < a7 else a7
+        j += 8
+    a0 = min(min(min(a0, a1), min(a2, a3)), min(min(a4, a5), min(a6, a7)))
+    while j < n:
+        a0 = out[j] if out[j] < a0 else a0
+        j += 1
+    return a0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _scan_run(flat, d, i0, n, x, periods, dists, best, best_dist):
+    """Fold nodes i0 .. i0 + n - 1 (in that order) into the running (best, best_dist) minimum,
+    a block of len(dists) nodes at a time: distances, their minimum, and only when it beats the
+    best the first node reaching it (so ties keep the earliest node, as a node-by-node scan)."""
+    size = dists.shape[0]
+    s = 0
+    while s < n:
+        m = min(size, n - s)
+        _run_dists(flat, d, i0 + s, m, x, periods, dists)
+        low = _block_min(dists, m)
+        if low < best_dist:
+            for j in range(m):
+                if dists[j] == low:
+                    best, best_dist = i0 + s + j, low
+                    break
+        s += m
+    return best, best_dist
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def find_winner(weights, x, grid, origin, window, periods, dists):
     """Index of the node nearest to x (squared Euclidean, periodic components wrapped) among the
     nodes of the window [origin, origin + window) (wrapping on wrapped axes). Ties: first node in
     scan order. `dists` is scratch space of at least grid[2] float64."""
+    return _find_winner_flat(weights, weights.reshape(-1), x, grid, origin, window, periods,
+                             dists)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _find_winner_flat(weights, flat, x, grid, origin, window, periods, dists):
+    """`find_winner`, given also the weights as one C-order vector `flat` (the same memory)."""
     best = -1
     best_dist = np.inf
+    if window[2] == grid[2] and origin[2] == 0 and window[1] * grid[2] >= LONG_RUN:
+        # whole rows from coordinate 0: a plane's rows are one or two long runs of consecutive
+        # nodes (split where axis 1 wraps), scanned block-wise
+        d = weights.shape[1]
+        for o0 in range(window[0]):
+            a0 = _wrap_index(origin[0] + o0, grid[0])
+            start = 0
+            while start < window[1]:
+                a1, stop = _run(origin[1], start, window[1] - 1, grid[1])
+                i0 = (a0 * grid[1] + a1) * grid[2]
+                best, best_dist = _scan_run(flat, d, i0, (stop - start + 1) * grid[2], x,
+                                            periods, dists, best, best_dist)
+                start = stop + 1
+        return best
     for o0 in range(window[0]):
         a0 = _wrap_index(origin[0] + o0, grid[0])
         for o1 in range(window[1]):
@@ -136,7 +244,7 @@ def find_winner(weights, x, grid, origin, window, periods, dists):
             while start < window[2]:
                 a2, stop = _run(origin[2], start, window[2] - 1, grid[2])
                 i0 = base + a2
-                _run_dists(weights, i0, stop - start + 1, x, periods, dists)
+                _row_dists(weights, i0, stop - start + 1, x, periods, dists)
                 for j in range(stop - start + 1):
                     if dists[j] < best_dist:
                         best_dist = dists[j]
@@ -337,6 +445,65 @@ def find_winner_buckets(weights, x, grid, origin, window, periods, b):
 # ----------------------------------------------------------------------------- the update
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _update_run(flat, d, i0, n, x, alpha, row_q, tables, t0):
+    """The separable path's update of nodes i0 .. i0 + n - 1 for the paper's target x (no
+    coherent target, range kernel, periodic component or bounds): m += alpha h (x - m) with
+    h_k = row_q[k] tables[k, 2, t0 + j], rounded exactly as the general loop rounds it. Indexed
+    from 0 in a slice of the flat weights so the loop vectorises across nodes."""
+    w = flat[i0 * d:(i0 + n) * d]
+    if d == 2:
+        x0, x1, q0, q1 = x[0], x[1], row_q[0], row_q[1]
+        f0 = tables[0, 2, t0:t0 + n]
+        f1 = tables[1, 2, t0:t0 + n]
+        for j in range(n):
+            m0 = w[2 * j]
+            m1 = w[2 * j + 1]
+            w[2 * j] = m0 + (alpha * (q0 * f0[j])) * (x0 - m0)
+            w[2 * j + 1] = m1 + (alpha * (q1 * f1[j])) * (x1 - m1)
+        return
+    if d == 3:
+        x0, x1, x2, q0, q1, q2 = x[0], x[1], x[2], row_q[0], row_q[1], row_q[2]
+        f0 = tables[0, 2, t0:t0 + n]
+        f1 = tables[1, 2, t0:t0 + n]
+        f2 = tables[2, 2, t0:t0 + n]
+        for j in range(n):
+            m0 = w[3 * j]
+            m1 = w[3 * j + 1]
+            m2 = w[3 * j + 2]
+            w[3 * j] = m0 + (alpha * (q0 * f0[j])) * (x0 - m0)
+            w[3 * j + 1] = m1 + (alpha * (q1 * f1[j])) * (x1 - m1)
+            w[3 * j + 2] = m2 + (alpha * (q2 * f2[j])) * (x2 - m2)
+        return
+    for j in range(n):
+        for k in range(d):
+            m = w[j * d + k]
+            w[j * d + k] = m + (alpha * (row_q[k] * tables[k, 2, t0 + j])) * (x[k] - m)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _refile_run(flat, d, i0, n, b, cells):
+    """Refile nodes i0 .. i0 + n - 1 in the inverse map b (as `_bucket_of` and `_bucket_move`
+    node by node, in the same order): their cells computed axis by axis into the int64 scratch
+    `cells` in loops that vectorise, then only the nodes whose cell changed are moved."""
+    w = flat[i0 * d:(i0 + n) * d]
+    for j in range(n):
+        cells[j] = 0
+    for a in range(3):
+        comp = b.comps[a]
+        if comp < 0:
+            continue  # an unused axis: one cell, index 0
+        count = b.shape[a]
+        corner, inv, top = b.origin[a], b.inv_size[a], count - 1.0
+        for j in range(n):
+            c = np.int64(min(max((w[j * d + comp] - corner) * inv, 0.0), top))
+            cells[j] = cells[j] * count + c
+    links = b.links
+    for j in range(n):
+        if cells[j] != links[2, i0 + j]:
+            _bucket_move(b.head, links, i0 + j, cells[j])
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _row_hmax(row_q, tables, j):
     """Largest component weight at axis-2 table position j of a row (separable path)."""
     hmax = 0.0
@@ -357,6 +524,37 @@ def _axis_range(c, radius, g, wrap):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _update_box(c, sigma, p, frame, tables, bounds):
+    """The update's box around winner c, as offsets bounds[0] <= D <= bounds[1], and on the
+    separable path the 1D factors tables[k, a, D_a - bounds[0, a]] = exp(-A_k,aa D_a^2 / 2
+    sigma^2). Returns the winner's grid coordinates."""
+    grid = p.grid
+    quad = p.quad[frame]
+    c0 = c // (grid[1] * grid[2])
+    c1 = (c // grid[2]) % grid[1]
+    c2 = c % grid[2]
+    coords = (c0, c1, c2)
+    inv2s2 = 1.0 / (2.0 * sigma * sigma)
+    lo = bounds[0]
+    hi = bounds[1]
+    for a in range(3):
+        e = p.extent[frame, a] * sigma
+        radius = grid[a] if not np.isfinite(e) or e >= grid[a] else np.int64(np.ceil(e))
+        lo[a], hi[a] = _axis_range(coords[a], radius, grid[a], p.wrap[a])
+
+    if p.separable:
+        for k in range(quad.shape[0]):
+            for a in range(3):
+                caa = quad[k, a, a]
+                if k > 0 and caa == quad[k - 1, a, a]:
+                    tables[k, a, :hi[a] - lo[a] + 1] = tables[k - 1, a, :hi[a] - lo[a] + 1]
+                    continue  # same factor as the previous component (e.g. isotropic maps)
+                for off in range(lo[a], hi[a] + 1):
+                    tables[k, a, off - lo[a]] = np.exp(-caa * off * off * inv2s2)
+    return c0, c1, c2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def update_neighbourhood(weights, c, x, alpha, sigma, p, tables, scratch, bounds, b, refile):
     """m_i += h_ci (target_i - m_i) for the nodes around winner c (one OS-Map step, eq. 1-4).
 
@@ -369,28 +567,10 @@ def update_neighbourhood(weights, c, x, alpha, sigma, p, tables, scratch, bounds
     d = weights.shape[1]
     frame = c if p.quad.shape[0] > 1 else 0
     quad = p.quad[frame]
-    c0 = c // (grid[1] * grid[2])
-    c1 = (c // grid[2]) % grid[1]
-    c2 = c % grid[2]
-    coords = (c0, c1, c2)
+    c0, c1, c2 = _update_box(c, sigma, p, frame, tables, bounds)
     inv2s2 = 1.0 / (2.0 * sigma * sigma)
-
     lo = bounds[0]
     hi = bounds[1]
-    for a in range(3):
-        e = p.extent[frame, a] * sigma
-        radius = grid[a] if not np.isfinite(e) or e >= grid[a] else np.int64(np.ceil(e))
-        lo[a], hi[a] = _axis_range(coords[a], radius, grid[a], p.wrap[a])
-
-    if p.separable:
-        for k in range(d):
-            for a in range(3):
-                caa = quad[k, a, a]
-                if k > 0 and caa == quad[k - 1, a, a]:
-                    tables[k, a, :hi[a] - lo[a] + 1] = tables[k - 1, a, :hi[a] - lo[a] + 1]
-                    continue  # same factor as the previous component (e.g. isotropic maps)
-                for off in range(lo[a], hi[a] + 1):
-                    tables[k, a, off - lo[a]] = np.exp(-caa * off * off * inv2s2)
 
     jac, periods, t_lo, t_hi, cutoff = p.jac, p.periods, p.lo, p.hi, p.cutoff
     separable = p.separable
@@ -479,6 +659,70 @@ def update_neighbourhood(weights, c, x, alpha, sigma, p, tables, scratch, bounds
                 start = stop + 1
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def update_classic(weights, flat, c, x, alpha, sigma, p, tables, scratch, bounds, cells, b,
+                   refile):
+    """`update_neighbourhood` for the separable path with the paper's target x and nothing else
+    (no coherent target, range kernel, periodic component or bounds; `is_classic`): the same
+    nodes, the same arithmetic and rounding, the same weights, but each row's nodes updated in a
+    loop that vectorises. `flat` is `weights.reshape(-1)`; `cells` (grid[2],) int64 is work
+    space for refiling."""
+    grid = p.grid
+    d = weights.shape[1]
+    c0, c1, c2 = _update_box(c, sigma, p, 0, tables, bounds)
+    lo = bounds[0]
+    hi = bounds[1]
+    cutoff = p.cutoff
+    row_q = scratch[3]
+    for o0 in range(lo[0], hi[0] + 1):
+        a0 = _wrap_index(c0 + o0, grid[0])
+        for o1 in range(lo[1], hi[1] + 1):
+            base = (a0 * grid[1] + _wrap_index(c1 + o1, grid[1])) * grid[2]
+            row_max = 0.0
+            for k in range(d):
+                row_q[k] = tables[k, 0, o0 - lo[0]] * tables[k, 1, o1 - lo[1]]
+                row_max = max(row_max, row_q[k])
+            if row_max < cutoff:
+                continue
+            first, last = lo[2], hi[2]
+            while first <= last and _row_hmax(row_q, tables, first - lo[2]) < cutoff:
+                first += 1
+            while last >= first and _row_hmax(row_q, tables, last - lo[2]) < cutoff:
+                last -= 1
+            start = first
+            while start <= last:
+                a2, stop = _run(c2, start, last, grid[2])
+                i0 = base + a2
+                n = stop - start + 1
+                if n >= SHORT_UPDATE:
+                    _update_run(flat, d, i0, n, x, alpha, row_q, tables, start - lo[2])
+                    if refile:
+                        _refile_run(flat, d, i0, n, b, cells)
+                else:  # node by node: no slicing set-up
+                    for j in range(n):
+                        i = i0 + j
+                        t2 = start - lo[2] + j
+                        for k in range(d):
+                            m = weights[i, k]
+                            weights[i, k] = m + (alpha * (row_q[k] * tables[k, 2, t2])) * (x[k] - m)
+                        if refile:
+                            _bucket_move(b.head, b.links, i,
+                                         _bucket_of(weights, i, b.comps, b.shape, b.origin,
+                                                    b.inv_size))
+                start = stop + 1
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def is_classic(p):
+    """The classic SOM update (separable, target x, nothing else): `update_classic` applies."""
+    classic = p.separable and p.range_a == 0.0 and p.range_b == 0.0 and p.quad.shape[0] == 1
+    for k in range(p.periods.shape[0]):
+        classic = classic and p.periods[k] == 0.0 and p.lo[k] == -np.inf and p.hi[k] == np.inf
+        for a in range(3):
+            classic = classic and p.jac[k, a] == 0.0
+    return classic
+
+
 @njit(cache=True, error_model="numpy")
 def train_steps(weights, inputs, origins, alphas, sigmas, p, b, bucket_from):
     """Run len(inputs) OS-Map steps in place: winner in the window at origins[t], then update.
@@ -493,8 +737,11 @@ def train_steps(weights, inputs, origins, alphas, sigmas, p, b, bucket_from):
     max_len = 2 * max(p.grid[0], p.grid[1], p.grid[2]) + 1
     tables = np.empty((d, 3, max_len))
     scratch = np.empty((5, d))
-    dists = np.empty(p.grid[2])
+    dists = np.empty(max(p.grid[2], 256))
     bounds = np.empty((2, 3), np.int64)
+    cells = np.empty(p.grid[2], np.int64)
+    flat = weights.reshape(-1)  # once: a reshape per step costs as much as a small window scan
+    classic = is_classic(p)
     winners = np.empty(inputs.shape[0], np.int64)
     use = False
     for t in range(inputs.shape[0]):
@@ -505,8 +752,13 @@ def train_steps(weights, inputs, origins, alphas, sigmas, p, b, bucket_from):
         if use:
             c = find_winner_buckets(weights, x, p.grid, origins[t], p.window, p.periods, b)
         else:
-            c = find_winner(weights, x, p.grid, origins[t], p.window, p.periods, dists)
+            c = _find_winner_flat(weights, flat, x, p.grid, origins[t], p.window, p.periods,
+                                  dists)
         winners[t] = c
-        update_neighbourhood(weights, c, x, alphas[t], sigmas[t], p, tables, scratch, bounds, b,
-                             use)
+        if classic:
+            update_classic(weights, flat, c, x, alphas[t], sigmas[t], p, tables, scratch, bounds,
+                           cells, b, use)
+        else:
+            update_neighbourhood(weights, c, x, alphas[t], sigmas[t], p, tables, scratch, bounds,
+                                 b, use)
     return winners

@@ -15,18 +15,27 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from osmap_kernels.som import Buckets, KernelParams, fill_buckets, find_winner, train_steps
+from osmap_kernels.som import (
+    LONG_RUN,
+    Buckets,
+    KernelParams,
+    fill_buckets,
+    find_winner,
+    train_steps,
+)
 
 PHI = -2.5  # the paper's schedule constant
 # Cost model of one step for choosing the winner search (seconds; fitted by the "winner search
 # against window size" table of bench/bench_kernels.py, only their ratios matter): scanning
-# costs SCAN_COST per window node and data component; the inverse map costs SEARCH_COST per
+# costs SCAN_COST per window node and data component (BLOCK_SCAN_COST when the window is whole,
+# unwrapped rows, which the kernel scans block-wise); the inverse map costs SEARCH_COST per
 # search, plus MISS_COST per out-of-window node it meets (about map size / window size of
 # them), plus REFILE_COST per updated node to keep the buckets current.
 SCAN_COST = 0.6e-9
+BLOCK_SCAN_COST = 0.2e-9
 SEARCH_COST = 0.7e-6
 MISS_COST = 25e-9
-REFILE_COST = 18e-9
+REFILE_COST = 6e-9
 NODES_PER_CELL = 4.0
 
 
@@ -275,7 +284,9 @@ class OSMap:
         for a in range(3):
             reach = 2.0 * np.ceil(p.extent[:, a].max() * sigmas) + 1.0
             updated *= np.minimum(reach, p.grid[a])
-        scan = SCAN_COST * window * self.dim
+        blockwise = (p.window[2] == p.grid[2] and not p.wrap[2]
+                     and p.window[1] * p.grid[2] >= LONG_RUN)
+        scan = (BLOCK_SCAN_COST if blockwise else SCAN_COST) * window * self.dim
         search = SEARCH_COST + MISS_COST * self.size / window
         return scan > search + REFILE_COST * updated
 

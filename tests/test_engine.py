@@ -211,3 +211,51 @@ def test_auto_search_switches_once_the_radius_has_shrunk():
     pays = som._buckets_pay(np.array([30.0, 8.0, 0.5]))
     assert not pays[0] and pays[-1]
     assert not OSMap((128, 128), 2, window=(8, 8))._buckets_pay(np.array([0.5]))[0]
+
+
+@pytest.mark.parametrize("shape,dim,wrap,window,sigma_max,search", [
+    ((40, 36), 2, (True, False), None, 12.0, "auto"),    # long runs, split where axis 1 wraps
+    ((40, 36), 3, (False, False), None, 12.0, "buckets"),  # vectorised refiling of long runs
+    ((10, 11, 12), 3, (False, True, False), None, 3.0, "auto"),
+    ((50,), 1, (False,), None, 10.0, "auto"),
+    ((24, 20), 4, (True, True), (9, 7), 4.0, "scan"),    # the generic component loop
+])
+def test_classic_update_matches_the_general_loop(shape, dim, wrap, window, sigma_max, search):
+    """The classic SOM's vectorised update gives the general loop's weights bit for bit: bounds
+    no target can reach make the same map take the general loop."""
+    from osmap_kernels.som import is_classic
+
+    rng = np.random.default_rng(13)
+    data = rng.random((500, dim))
+    schedule = Schedule(sigma_max=sigma_max, sigma_min=0.5)
+    maps = []
+    for bounds in (None, [[-1e9, 1e9]] * dim):
+        som = OSMap(shape, dim, wrap=wrap, window=window, bounds=bounds).init_random(data, 0)
+        assert is_classic(som._params) == (bounds is None)
+        maps.append(som.train(data, 2000, schedule=schedule, seed=5, search=search).weights)
+    assert np.array_equal(maps[0], maps[1])
+
+
+@pytest.mark.parametrize("shape,wrap", [((40, 32), (False, False)), ((40, 32), (True, False)),
+                                        ((40, 32), (False, True)),
+                                        ((3, 20, 16), (True, False, False))])
+def test_blockwise_scan_finds_the_first_nearest_node(shape, wrap):
+    """Whole-row windows are scanned block by block (rows split where a wrapped axis 1 wraps);
+    the winner is still the nearest node and, among equally near ones (duplicated model
+    vectors), the first in the window's scan order."""
+    from osmap_kernels.som import find_winner
+
+    rng = np.random.default_rng(14)
+    data = np.round(rng.random((50, 3)) * 3) / 3  # few distinct values: many exact ties
+    som = OSMap(shape, 3, wrap=wrap).init_random(data, 0)
+    p = som._params
+    w = som.weights.astype(np.float64)
+    for x in np.concatenate([data[:20], rng.random((20, 3))]):
+        origin = np.where(p.wrap, rng.integers(0, p.grid), 0).astype(np.int64)
+        scan = np.indices(p.grid).reshape(3, -1)  # the window's nodes in scan order
+        coords = (scan + origin[:, None]) % p.grid[:, None]
+        order = np.ravel_multi_index(tuple(coords), tuple(p.grid))
+        d2 = ((x - w[order]) ** 2).sum(1)
+        got = find_winner(som.weights, x, p.grid, origin, p.window, p.periods,
+                          np.empty(p.grid[2]))
+        assert got == order[int(np.argmin(d2))]
