@@ -6,7 +6,7 @@ Sections:
            about 15 min; needs ../shared (skipped with a note when absent)
   surface  bench/bench_surface.py's run() (skipped with a note when the file is absent)
   solid    bench/bench_solid.py's run() (skipped with a note when the file is absent)
-  som      the classic SOM case against MiniSom (bench/bench_som.py), about 8 min
+  som      the classic SOM case against MiniSom (bench/bench_som.py), about 20 min
   kernels  OS-Map kernel paths and winner search against window size (bench/bench_kernels.py)
   roofline bytes and flops per kernel against measured bandwidth and flop rate (same file)
   memory   1024x1024 end to end and peak RSS against output size (bench/bench_memory.py)
