@@ -14,6 +14,8 @@ Two passes alternate (Kopf et al. 2007, with a mode instead of an average):
 - colour_pass: every in-plane neighbour of every axis proposes the exemplar pixel that its
   match places on this voxel; the voxel takes the proposal of highest weighted density in
   appearance space (averaging would blur), discounted by how over-used its exemplar pixel is.
+Finally blend_render renders each voxel as the weighted mean of the proposals near its chosen
+source in appearance space: exact where they all agree, blended across seams.
 
 Both are Jacobi passes (read one array, write another) and every random number is a hash of
 (seed, salt, voxel): the result does not depend on the thread count.
@@ -207,9 +209,27 @@ def search_pass(vol, pos, dst, cost, feats, ex_of_axis, knn, occ, p):
                 cost[a, z, y, x] = best
 
 
+@njit(cache=True, inline="always")
+def _merge_duplicates(pa, pr, pc, pw, n):
+    """Merge identical proposals (same axis, row, col) into their first occurrence, summing the
+    weights; returns the number left. The density ranking is unchanged (a duplicate is at
+    distance 0) and the pairwise loop shrinks where neighbours copy coherently."""
+    m = 0
+    for i in range(n):
+        j = 0
+        while j < m and not (pa[j] == pa[i] and pr[j] == pr[i] and pc[j] == pc[i]):
+            j += 1
+        if j < m:
+            pw[j] += pw[i]
+        else:
+            pa[m], pr[m], pc[m], pw[m] = pa[i], pr[i], pc[i], pw[i]
+            m += 1
+    return m
+
+
 @njit(cache=True, parallel=True)
 def colour_pass(pos, cost, feats, ex_of_axis, occ, p, source, vol):
-    """Choose every voxel's source among the proposals of its in-plane 3x3 neighbours.
+    """Choose every voxel's source among the proposals of its in-plane (2r+1)^2 neighbours.
 
     pos int32[3, Z, Y, X, 2]; cost float32[3, Z, Y, X]; feats float32[E, h, w, F];
     occ float32[E, h, w] usage of each exemplar pixel (1 = uniform); writes source
@@ -247,6 +267,7 @@ def colour_pass(pos, cost, feats, ex_of_axis, occ, p, source, vol):
                         pc[n] = col
                         pw[n] = (cost[a, q0, q1, q2] + p.eps) ** (-p.power)
                         n += 1
+            n = _merge_duplicates(pa, pr, pc, pw, n)
             for i in range(n):
                 e = ex_of_axis[pa[i]]
                 for f in range(nf):
@@ -303,3 +324,62 @@ def usage_counts(source, ex_of_axis, n_ex, h, w):
             for x in range(X):
                 counts[ex_of_axis[source[z, y, x, 0]], source[z, y, x, 1], source[z, y, x, 2]] += 1
     return counts
+
+
+@njit(cache=True, parallel=True)
+def blend_render(pos, cost, feats, images, ex_of_axis, source, p):
+    """float32[Z, Y, X, C]: every voxel's colour as the weighted mean of the proposals that agree
+    with its source (Kwatra-style voting restricted to the mode's cluster): proposal j weighs
+    (cost_j + eps)^-power * max(0, 1 - |f_j - f_source|^2 / bandwidth2). Where every proposal is
+    the source pixel itself, the voxel is that pixel exactly; across a seam the sides blend.
+
+    pos, cost, feats, ex_of_axis, p as in colour_pass; images float32[E, h, w, C]; source
+    int32[Z, Y, X, 3] the chosen sources.
+    """
+    Z, Y, X = pos.shape[1], pos.shape[2], pos.shape[3]
+    nf = feats.shape[3]
+    h, w = feats.shape[1], feats.shape[2]
+    C = images.shape[3]
+    shape = (Z, Y, X)
+    pr_ = p.radius
+    inv2b = 1.0 / p.bandwidth2
+    out = np.empty((Z, Y, X, C), np.float32)
+    for zy in prange(Z * Y):
+        z = zy // Y
+        y = zy % Y
+        acc = np.empty(C)
+        for x in range(X):
+            es = ex_of_axis[source[z, y, x, 0]]
+            sr = source[z, y, x, 1]
+            sc = source[z, y, x, 2]
+            acc[:] = 0.0
+            total = 0.0
+            agree = True
+            for a in range(3):
+                e = ex_of_axis[a]
+                for dr in range(-pr_, pr_ + 1):
+                    for dc in range(-pr_, pr_ + 1):
+                        q0, q1, q2, ok = _neighbour(z, y, x, a, dr, dc, shape, p.wrap)
+                        if not ok:
+                            continue
+                        row = min(max(pos[a, q0, q1, q2, 0] - dr, 0), h - 1)
+                        col = min(max(pos[a, q0, q1, q2, 1] - dc, 0), w - 1)
+                        d2 = 0.0
+                        for f in range(nf):
+                            diff = feats[e, row, col, f] - feats[es, sr, sc, f]
+                            d2 += diff * diff
+                        kern = 1.0 - d2 * inv2b
+                        if kern <= 0.0:
+                            continue
+                        wt = kern * (cost[a, q0, q1, q2] + p.eps) ** (-p.power)
+                        for c in range(C):
+                            v = images[e, row, col, c]
+                            acc[c] += wt * v
+                            agree = agree and v == images[es, sr, sc, c]
+                        total += wt
+            for c in range(C):
+                if agree or total == 0.0:
+                    out[z, y, x, c] = images[es, sr, sc, c]
+                else:
+                    out[z, y, x, c] = acc[c] / total
+    return out

@@ -75,11 +75,33 @@ def test_uv_out_re_renders_the_volume(run_cli, exemplar, reference, tmp_path):
     uv = np.load(tmp_path / "uv.npy")
     assert uv.shape == (SIDE, SIDE, SIDE, 3) and uv.dtype == np.float32
     assert set(np.unique(uv[..., 2])) <= {0.0, 1.0, 2.0}
+    assert np.array_equal(uv, reference.uv())
     pixels = read_image(exemplar).pixels
-    assert np.array_equal(render_volume(uv, pixels), np.load(tmp_path / "v.npy"))
+    # the positions render the exact copies: the volume as blend = 0 makes it
+    copies = render_volume(uv, pixels)
+    options = SolidOptions(width=SIDE, height=SIDE, depth=SIDE, seed=3).replace(**FAST)
+    assert np.array_equal(copies, synthesize_solid([pixels], options.replace(blend=0.0)).voxels)
     # another aligned map: each voxel takes that map's value at its (v, u)
     other = pixels[..., ::-1].copy()
-    assert np.array_equal(render_volume(uv, [other] * 3), reference.voxels[..., ::-1])
+    assert np.array_equal(render_volume(uv, [other] * 3), copies[..., ::-1])
+
+
+def test_blend_only_renders_the_seams(exemplar, reference):
+    """blend changes the render, not the sources: the voxels are means of the proposed exemplar
+    colours (inside the exemplar's colour range); a tiny bandwidth keeps only the proposals
+    equal to the source, which renders the exact copies."""
+    pixels = read_image(exemplar).pixels
+    options = SolidOptions(width=SIDE, height=SIDE, depth=SIDE, seed=3).replace(**FAST)
+    assert options.blend > 0
+    hard = synthesize_solid([pixels], options.replace(blend=0.0))
+    assert np.array_equal(hard.source, reference.source)
+    assert not np.array_equal(hard.voxels, reference.voxels)
+    narrow = synthesize_solid([pixels], options.replace(blend=1e-9))
+    assert np.array_equal(narrow.source, reference.source)
+    assert np.abs(narrow.voxels - hard.voxels).max() < 1e-6
+    flat = pixels.reshape(-1, pixels.shape[2])
+    assert (reference.voxels >= flat.min(0) - 1e-6).all()
+    assert (reference.voxels <= flat.max(0) + 1e-6).all()
 
 
 def test_preview_is_written(run_cli, exemplar, tmp_path):

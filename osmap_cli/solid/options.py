@@ -61,6 +61,9 @@ class SolidOptions:
                              "the exemplar's colour distribution")
     smooth_upsample: float = _spec(1.0, 0.0, 1.0, "weight of the coarser volume's interpolated "
                                    "colours (against its duplicated sources) at each new level")
+    blend: float = _spec(1.0, 0.0, 100.0, "render: mean of the proposals within this "
+                         "bandwidth (relative to the feature variance) of each voxel's source; "
+                         "0: exact copies")
     som_steps_per_node: float = _spec(10.0, 0.0, 1000.0, "OS-Map steps per coarsest voxel")
     som_sigma_max: float = _spec(1.5, 0.1, 64.0, "OS-Map initial radius, voxels")
     som_anisotropy: float = _spec(0.25, 0.0, 1.0, "kernel weight across / along each component")

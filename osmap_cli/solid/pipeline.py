@@ -22,6 +22,7 @@ from osmap_kernels.solid import (
     PLANE,
     ColourParams,
     SearchParams,
+    blend_render,
     colour_pass,
     gather_sources,
     search_pass,
@@ -38,7 +39,8 @@ NORMAL_DIM = (2, 1, 0)  # volume dim (z, y, x order) normal to axis x, y, z
 @dataclass(frozen=True)
 class SolidResult:
     """voxels: float32 (Z, Y, X, C); source: int32 (Z, Y, X, 3) = (axis, row, col) of the
-    exemplar pixel each voxel shows (axis 0, 1, 2 = the x, y, z exemplar)."""
+    exemplar pixel each voxel is copied from (axis 0, 1, 2 = the x, y, z exemplar); with
+    `blend` > 0 the voxels on seams are blended, the others are their source pixel exactly."""
 
     voxels: np.ndarray
     source: np.ndarray
@@ -310,4 +312,8 @@ def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidRe
                 progress(done / total)
         colours = gather_sources(source, _stack(level_images, hw), ex_of_axis)
     full = _stack(images, (max(im.shape[0] for im in images), max(im.shape[1] for im in images)))
-    return SolidResult(gather_sources(source, full, ex_of_axis), source)
+    if opts.blend == 0.0:
+        return SolidResult(gather_sources(source, full, ex_of_axis), source)
+    bparams = cparams._replace(bandwidth2=opts.blend * variance)
+    return SolidResult(blend_render(pos, cost, feat_stack, full, ex_of_axis, source, bparams),
+                       source)
