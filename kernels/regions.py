@@ -118,22 +118,18 @@ def _border_pixels(labels, radius, wrap):
 
 
 @njit(cache=True)
-def _border_terms(pos, labels, group, area, feat, jac, border, region, p):
+def _border_terms(pos, labels, group, area, feat, jac, border, region, p, terms):
     """The border cost terms that change when `region` moves by a shift d, in a form that
     costs each shift cheaply: matching terms |fixed - feat(base + d)|^2 (a pixel of the region
     against one outside it, in either role), and seam terms that vanish when d == target (the
     shift that makes a pair of 8-neighbours across the border continue each other), with the
     region on the other side, flagged when that would merge two copies into one larger than
-    p.max_area (group, area: the copies merged so far and their areas)."""
+    p.max_area (group, area: the copies merged so far and their areas). Fills the scratch
+    arrays `terms` (see _scratch) and returns views of the filled parts."""
     H, W = pos.shape[0], pos.shape[1]
     nf = feat.shape[2]
     r = p.radius
-    n_max = border.shape[0] * (2 * r + 1) ** 2
-    fixed = np.empty((n_max, nf))
-    base = np.empty((n_max, 2))
-    target = np.empty((border.shape[0] * 8, 2))
-    merges = np.empty(border.shape[0] * 8, np.bool_)
-    others = np.empty(border.shape[0] * 8, np.int64)
+    fixed, base, target, merges, others = terms
     buf = np.empty(nf)
     n = 0
     m = 0
@@ -176,6 +172,16 @@ def _border_terms(pos, labels, group, area, feat, jac, border, region, p):
             others[m] = labels[qy, qx] if inner else labels[y, x]
             m += 1
     return fixed[:n], base[:n], target[:m], merges[:m], others[:m]
+
+
+@njit(cache=True)
+def _scratch(longest_border, radius, nf):
+    """Scratch arrays for _border_terms, large enough for a border of `longest_border` pixels:
+    allocated once per pass rather than once per region."""
+    n_max = longest_border * (2 * radius + 1) ** 2
+    return (np.empty((n_max, nf), np.float32), np.empty((n_max, 2)),
+            np.empty((longest_border * 8, 2)), np.empty(longest_border * 8, np.bool_),
+            np.empty(longest_border * 8, np.int64))
 
 
 @njit(cache=True)
@@ -281,11 +287,12 @@ def align_regions(pos, feat, jac, p):
     members = np.argsort(flat, kind="mergesort")
     member_labels = flat[members]
     shifts = _shifts_by_length(p.reach)
+    terms = _scratch(np.max(np.diff(starts)), p.radius, feat.shape[2])
     for i in range(starts.shape[0] - 1):
         region = regions[starts[i]]
         border = pixels[starts[i]:starts[i + 1]]
         fixed, base, target, merges, others = _border_terms(pos, labels, group, area, feat, jac,
-                                                            border, region, p)
+                                                            border, region, p, terms)
         j = _best_shift(feat, fixed, base, target, merges, shifts, lo_pos[region],
                         hi_pos[region], p)
         if j == 0:

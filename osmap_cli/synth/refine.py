@@ -13,7 +13,10 @@ from osmap_kernels.regions import AlignParams, align_regions, copy_region_areas
 # Whole-copy shifts are judged on the 3x3 neighbourhoods across a copy's border: as good as the
 # matching window (5x5) on the 11 development exemplars, at a quarter of the cost.
 ALIGN_RADIUS = 1
-MAX_KNN_REFERENCES = 4096  # positions each exemplar pixel is compared with to find its k-NN
+# Positions each exemplar pixel is compared with to find its k-NN (a grid of them): 2048 scores
+# as 4096 on the development exemplars (geometric-mean coh_mean 1.383 against 1.381) in 2/3 of
+# the time.
+MAX_KNN_REFERENCES = 2048
 
 
 def similar_positions(feat: np.ndarray, lo, hi, k: int) -> np.ndarray:
@@ -69,10 +72,17 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
             pos = align_regions(pos, feat, jac_field, AlignParams(
                 radius=ALIGN_RADIUS, wrap=wrap, lo=np.asarray(lo, np.float64),
                 hi=np.asarray(hi, np.float64), seam=seam, max_area=float(max_area),
-                reach=int(opts.align)))
+                reach=align_reach(opts.align, level_scale)))
         if progress is not None:
             progress(1)
     return pos
+
+
+def align_reach(align: int, level_scale: int) -> int:
+    """Whole-copy shifts tried at a level: up to `align` pixels, and one at the finest level,
+    where the coarser levels have already placed the copies to within a pixel (measured: the
+    same quality as the full reach there, at a fifth of the cost)."""
+    return min(align, 1) if level_scale == 1 else align
 
 
 def upsample(pos: np.ndarray, out_shape, jac_field: np.ndarray, lo, hi) -> np.ndarray:
