@@ -117,6 +117,7 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
             pos = upsample(pos, shapes[level], jac_field, lo, hi)
             sweeps = opts.sweeps
         pos = refine(pos, feat, jac_field, lo, hi, sweeps, opts, wrap=wrap, seed=opts.seed,
-                     salt=level, level_scale=2 ** level, progress=advance)
+                     salt=level, level_scale=2 ** level,
+                     coarsest_scale=2 ** (levels - 1), progress=advance)
     pixels = render(exemplar, pos, jac_field, *render_settings(opts))
     return SynthResult(pixels, pos, None if fields is None else jac_field)

@@ -41,7 +41,7 @@ def occupancy(pos: np.ndarray, exemplar_shape, radius: int = 2) -> np.ndarray:
 
 def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, sweeps: int,
            opts: SynthOptions, *, wrap: bool, seed: int, salt: int, level_scale: int = 1,
-           progress=None) -> np.ndarray:
+           coarsest_scale: int = 1, progress=None) -> np.ndarray:
     """`sweeps` red-black coherence sweeps over pos (H, W, 2); returns the new field."""
     knn = similar_positions(feat, lo, hi, opts.knn)
     if opts.knn == 0:
@@ -72,17 +72,20 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
             pos = align_regions(pos, feat, jac_field, AlignParams(
                 radius=ALIGN_RADIUS, wrap=wrap, lo=np.asarray(lo, np.float64),
                 hi=np.asarray(hi, np.float64), seam=seam, max_area=float(max_area),
-                reach=align_reach(opts.align, level_scale)))
+                reach=align_reach(opts.align, level_scale, coarsest_scale)))
         if progress is not None:
             progress(1)
     return pos
 
 
-def align_reach(align: int, level_scale: int) -> int:
-    """Whole-copy shifts tried at a level: up to `align` pixels, and one at the finest level,
-    where the coarser levels have already placed the copies to within a pixel (measured: the
-    same quality as the full reach there, at a fifth of the cost)."""
-    return min(align, 1) if level_scale == 1 else align
+def align_reach(align: int, level_scale: int, coarsest_scale: int) -> int:
+    """Whole-copy shifts tried at a level: up to `align` pixels at the coarsest level, half as
+    many at each finer one (at least 1): the coarser levels have already placed the copies to
+    within a pixel or two there (measured: the same quality as the full reach at every level,
+    for a fraction of the cost at large sizes)."""
+    if align == 0:
+        return 0
+    return max(1, align * level_scale // max(coarsest_scale, 1))
 
 
 def upsample(pos: np.ndarray, out_shape, jac_field: np.ndarray, lo, hi) -> np.ndarray:
