@@ -56,8 +56,8 @@ TUNING_FLAGS: tuple[tuple[str, type, str], ...] = (
     ("occupancy", float, "penalty on over-used exemplar regions"),
     ("seam", float, "penalty on positions that break their neighbours' copy"),
     ("max_copy", float, "copy regions wider than this, in output pixels, are broken up (0: off)"),
-    ("align", int, "copies are moved whole by up to this many pixels where their borders match "
-     "better (0: off)"),
+    ("align", int, "copies move whole by up to this many pixels to match at their borders "
+     "(coarsest level; halved per finer level; 0: off)"),
     ("blend", int, "seam blending radius when rendering, pixels (0: hard copies)"),
     ("knn", int, "similar-position candidates per pixel (k-coherence)"),
     ("random_candidates", int, "PatchMatch random-search candidates per pixel"),

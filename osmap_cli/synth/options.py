@@ -59,8 +59,8 @@ class SynthOptions:
     seam: float = _spec(1.0, 0.0, 10.0, "penalty on positions that break their neighbours' copy")
     max_copy: float = _spec(56.0, 0.0, 4096.0, "copy regions wider than this, in output pixels, "
                             "are broken up (0: off)")
-    align: int = _spec(4, 0, 8, "copies are moved whole by up to this many pixels "
-                       "where their borders match better (0: off)")
+    align: int = _spec(4, 0, 8, "copies move whole by up to this many pixels to match at their "
+                       "borders (coarsest level; halved per finer level; 0: off)")
     blend: int = _spec(2, 0, 8, "seam blending radius when rendering, pixels (0: hard copies)")
     knn: int = _spec(4, 0, 16, "similar-position candidates (k-coherence)")
     random_candidates: int = _spec(4, 0, 16, "PatchMatch random-search candidates")
