@@ -51,7 +51,7 @@ def test_output_is_coherent_and_complete(results, name):
 # 0): cells 0.0206 / 0.0229, weave 0.0102 / 0.0092; before the seam penalty and blending cells
 # 0.0299 / 0.0295, weave 0.0174 / 0.0110. The coherence guards sit between, so either regression
 # fails them; the shifts trade some completeness on these small samples (not on the development
-# exemplars: median compl 0.99 -> 1.19 against the best peer's 1.68), so that guard only catches
+# exemplars: median compl 0.99 -> 1.18 against the best peer's 1.68), so that guard only catches
 # a collapse to a few copies.
 QUALITY_GUARD = {"cells": (0.018, 0.036), "weave": (0.0085, 0.017)}
 
