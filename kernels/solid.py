@@ -227,6 +227,26 @@ def _merge_duplicates(pa, pr, pc, pw, n):
     return m
 
 
+@njit(cache=True, inline="always")
+def _gather_proposals(pos, cost, z, y, x, h, w, p, pa, pr, pc, pw):
+    """The exemplar pixels voxel (z, y, x)'s in-plane neighbours (all three axes) propose for
+    it: axis pa, row pr, column pc, weight pw = (match cost + eps)^-power. Returns their count."""
+    shape = (pos.shape[1], pos.shape[2], pos.shape[3])
+    n = 0
+    for a in range(3):
+        for dr in range(-p.radius, p.radius + 1):
+            for dc in range(-p.radius, p.radius + 1):
+                q0, q1, q2, ok = _neighbour(z, y, x, a, dr, dc, shape, p.wrap)
+                if not ok:
+                    continue
+                pa[n] = a
+                pr[n] = min(max(pos[a, q0, q1, q2, 0] - dr, 0), h - 1)
+                pc[n] = min(max(pos[a, q0, q1, q2, 1] - dc, 0), w - 1)
+                pw[n] = (cost[a, q0, q1, q2] + p.eps) ** (-p.power)
+                n += 1
+    return n
+
+
 @njit(cache=True, parallel=True)
 def colour_pass(pos, cost, feats, ex_of_axis, occ, p, source, vol):
     """Choose every voxel's source among the proposals of its in-plane (2r+1)^2 neighbours.
@@ -238,9 +258,7 @@ def colour_pass(pos, cost, feats, ex_of_axis, occ, p, source, vol):
     Z, Y, X = pos.shape[1], pos.shape[2], pos.shape[3]
     nf = feats.shape[3]
     h, w = feats.shape[1], feats.shape[2]
-    shape = (Z, Y, X)
-    pr_ = p.radius
-    n_prop = 3 * (2 * pr_ + 1) ** 2
+    n_prop = 3 * (2 * p.radius + 1) ** 2
     inv2b = 1.0 / p.bandwidth2
     for zy in prange(Z * Y):
         z = zy // Y
@@ -252,21 +270,7 @@ def colour_pass(pos, cost, feats, ex_of_axis, occ, p, source, vol):
         pf = np.empty((n_prop, nf), np.float32)
         score = np.empty(n_prop)
         for x in range(X):
-            n = 0
-            for a in range(3):
-                e = ex_of_axis[a]
-                for dr in range(-pr_, pr_ + 1):
-                    for dc in range(-pr_, pr_ + 1):
-                        q0, q1, q2, ok = _neighbour(z, y, x, a, dr, dc, shape, p.wrap)
-                        if not ok:
-                            continue
-                        row = min(max(pos[a, q0, q1, q2, 0] - dr, 0), h - 1)
-                        col = min(max(pos[a, q0, q1, q2, 1] - dc, 0), w - 1)
-                        pa[n] = a
-                        pr[n] = row
-                        pc[n] = col
-                        pw[n] = (cost[a, q0, q1, q2] + p.eps) ** (-p.power)
-                        n += 1
+            n = _gather_proposals(pos, cost, z, y, x, h, w, p, pa, pr, pc, pw)
             n = _merge_duplicates(pa, pr, pc, pw, n)
             for i in range(n):
                 e = ex_of_axis[pa[i]]
@@ -340,13 +344,16 @@ def blend_render(pos, cost, feats, images, ex_of_axis, source, p):
     nf = feats.shape[3]
     h, w = feats.shape[1], feats.shape[2]
     C = images.shape[3]
-    shape = (Z, Y, X)
-    pr_ = p.radius
+    n_prop = 3 * (2 * p.radius + 1) ** 2
     inv2b = 1.0 / p.bandwidth2
     out = np.empty((Z, Y, X, C), np.float32)
     for zy in prange(Z * Y):
         z = zy // Y
         y = zy % Y
+        pa = np.empty(n_prop, np.int64)
+        pr = np.empty(n_prop, np.int64)
+        pc = np.empty(n_prop, np.int64)
+        pw = np.empty(n_prop)
         acc = np.empty(C)
         for x in range(X):
             es = ex_of_axis[source[z, y, x, 0]]
@@ -355,28 +362,24 @@ def blend_render(pos, cost, feats, images, ex_of_axis, source, p):
             acc[:] = 0.0
             total = 0.0
             agree = True
-            for a in range(3):
-                e = ex_of_axis[a]
-                for dr in range(-pr_, pr_ + 1):
-                    for dc in range(-pr_, pr_ + 1):
-                        q0, q1, q2, ok = _neighbour(z, y, x, a, dr, dc, shape, p.wrap)
-                        if not ok:
-                            continue
-                        row = min(max(pos[a, q0, q1, q2, 0] - dr, 0), h - 1)
-                        col = min(max(pos[a, q0, q1, q2, 1] - dc, 0), w - 1)
-                        d2 = 0.0
-                        for f in range(nf):
-                            diff = feats[e, row, col, f] - feats[es, sr, sc, f]
-                            d2 += diff * diff
-                        kern = 1.0 - d2 * inv2b
-                        if kern <= 0.0:
-                            continue
-                        wt = kern * (cost[a, q0, q1, q2] + p.eps) ** (-p.power)
-                        for c in range(C):
-                            v = images[e, row, col, c]
-                            acc[c] += wt * v
-                            agree = agree and v == images[es, sr, sc, c]
-                        total += wt
+            n = _gather_proposals(pos, cost, z, y, x, h, w, p, pa, pr, pc, pw)
+            for j in range(n):
+                e = ex_of_axis[pa[j]]
+                row = pr[j]
+                col = pc[j]
+                d2 = 0.0
+                for f in range(nf):
+                    diff = feats[e, row, col, f] - feats[es, sr, sc, f]
+                    d2 += diff * diff
+                kern = 1.0 - d2 * inv2b
+                if kern <= 0.0:
+                    continue
+                wt = kern * pw[j]
+                for c in range(C):
+                    v = images[e, row, col, c]
+                    acc[c] += wt * v
+                    agree = agree and v == images[es, sr, sc, c]
+                total += wt
             for c in range(C):
                 if agree or total == 0.0:
                     out[z, y, x, c] = images[es, sr, sc, c]

@@ -89,40 +89,6 @@ def _node_dist(weights, i, x, periods):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _row_dists(weights, i0, n, x, periods, out):
-    """`_run_dists` indexing the 2D weights: less set-up, the faster for short runs."""
-    d = weights.shape[1]
-    if d == 2 and periods[0] == 0.0 and periods[1] == 0.0:
-        x0, x1 = x[0], x[1]  # unrolled: the common 2D case vectorises across nodes
-        for j in range(n):
-            e0 = x0 - weights[i0 + j, 0]
-            e1 = x1 - weights[i0 + j, 1]
-            out[j] = 0.0 + e0 * e0 + e1 * e1
-        return
-    if d == 3 and periods[0] == 0.0 and periods[1] == 0.0 and periods[2] == 0.0:
-        x0, x1, x2 = x[0], x[1], x[2]
-        for j in range(n):
-            e0 = x0 - weights[i0 + j, 0]
-            e1 = x1 - weights[i0 + j, 1]
-            e2 = x2 - weights[i0 + j, 2]
-            out[j] = 0.0 + e0 * e0 + e1 * e1 + e2 * e2
-        return
-    for j in range(n):
-        out[j] = 0.0
-    for k in range(d):
-        xk = x[k]
-        period = periods[k]
-        if period > 0.0:
-            for j in range(n):
-                diff = _wrapped_diff(xk - weights[i0 + j, k], period)
-                out[j] += diff * diff
-        else:
-            for j in range(n):
-                diff = xk - weights[i0 + j, k]
-                out[j] += diff * diff
-
-
-@njit(cache=True, inline="always", error_model="numpy")
 def _run_dists(flat, d, i0, n, x, periods, out):
     """out[j] = squared distance from x to node i0 + j, j < n, summed over k in the same order
     as `_node_dist` (so the values are identical). `flat` is the weights as one C-order vector:
@@ -221,10 +187,10 @@ def _find_winner_flat(weights, flat, x, grid, origin, window, periods, dists):
     """`find_winner`, given also the weights as one C-order vector `flat` (the same memory)."""
     best = -1
     best_dist = np.inf
+    d = weights.shape[1]
     if window[2] == grid[2] and origin[2] == 0 and window[1] * grid[2] >= LONG_RUN:
         # whole rows from coordinate 0: a plane's rows are one or two long runs of consecutive
         # nodes (split where axis 1 wraps), scanned block-wise
-        d = weights.shape[1]
         for o0 in range(window[0]):
             a0 = _wrap_index(origin[0] + o0, grid[0])
             start = 0
@@ -244,7 +210,7 @@ def _find_winner_flat(weights, flat, x, grid, origin, window, periods, dists):
             while start < window[2]:
                 a2, stop = _run(origin[2], start, window[2] - 1, grid[2])
                 i0 = base + a2
-                _row_dists(weights, i0, stop - start + 1, x, periods, dists)
+                _run_dists(flat, d, i0, stop - start + 1, x, periods, dists)
                 for j in range(stop - start + 1):
                     if dists[j] < best_dist:
                         best_dist = dists[j]
