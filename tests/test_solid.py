@@ -222,30 +222,34 @@ def _streakiness(image):
 
 
 def _worst_axis(exemplar, volume):
-    """Worst axis' mean patch coherence and streakiness."""
-    coh, streaks = [], []
+    """Worst axis' mean patch coherence, streakiness and |log2| of the feature scale."""
+    coh, streaks, scale = [], [], []
     for slices in _axis_slices(volume).values():
         coh.append(np.mean([ts.coherence(exemplar, s, stride=2) for s in slices]))
         streaks.append(np.mean([_streakiness(s) for s in slices]))
-    return max(coh), max(streaks)
+        scale.append(abs(np.log2(np.mean([ts.feature_scale(exemplar, s) for s in slices]))))
+    return max(coh), max(streaks), max(scale)
 
 
 def test_every_axis_looks_like_the_exemplar(samples):
     exemplar = read_image(samples / "cells.png").pixels[::2, ::2].copy()  # 64 px
     volume = synthesize_solid([exemplar], SolidOptions(width=40, height=40, depth=40,
                                                        seed=1)).voxels
-    coh, streaks = _worst_axis(exemplar, volume)
+    coh, streaks, scale = _worst_axis(exemplar, volume)
     # broken formulations: one 2D position per voxel (here the exemplar extruded along z: the
     # x and y slices are streaks), and voxels drawn at random (noise)
     rng = np.random.default_rng(0)
     extruded = np.broadcast_to(exemplar[None, :40, :40], volume.shape).copy()
     noise = exemplar.reshape(-1, exemplar.shape[2])[rng.integers(0, 64 * 64, 40**3)]
-    coh_extruded, streaks_extruded = _worst_axis(exemplar, extruded)
-    coh_noise, _ = _worst_axis(exemplar, noise.reshape(volume.shape))
-    assert streaks < 0.5 < streaks_extruded, (streaks, streaks_extruded)  # measured about 0.14 / 30
-    assert coh < 0.5 * coh_noise, (coh, coh_noise)  # measured 0.091 / 0.23
-    # the default seam penalty trades a little coherence for the right feature scale at 128^3
-    assert coh < coh_extruded, (coh, coh_extruded)  # measured 0.108 / 0.113
+    _, streaks_extruded, scale_extruded = _worst_axis(exemplar, extruded)
+    coh_noise, _, scale_noise = _worst_axis(exemplar, noise.reshape(volume.shape))
+    assert streaks < 0.5 < streaks_extruded, (streaks, streaks_extruded)  # measured 0.07 / 27
+    assert coh < 0.6 * coh_noise, (coh, coh_noise)  # measured 0.123 / 0.230
+    # Coherence alone rewards volumes collapsed into large blobs (seam 0: 0.085, the former
+    # seam 0.2 at every level: 0.101, with x slices' features 2.35x and 1.98x too large); the
+    # feature scale on every axis catches them (measured |log2|: 0.29 here, 0.99 for the former
+    # defaults, 0.71 extruded, 1.29 noise).
+    assert scale < 0.4 < min(scale_extruded, scale_noise), (scale, scale_extruded, scale_noise)
 
 
 def test_upsample_linear_keeps_constants_and_ramps():
@@ -300,3 +304,20 @@ def test_seam_penalty_keeps_coherent_copies():
                     np.zeros(3, np.int64), knn, occ, params)
         moved.append(np.mean(np.any(dst != pos, axis=-1)))
     assert moved[0] > 0.5 and moved[1] == 0.0, moved
+
+
+def test_seam_acts_at_the_finest_level_coarse_seam_at_the_coarser_ones(exemplar):
+    pixels = read_image(exemplar).pixels
+    base = SolidOptions(width=SIDE, height=SIDE, depth=SIDE, seed=3).replace(**FAST)
+
+    def volume(**changes):
+        return synthesize_solid([pixels], base.replace(**changes)).voxels
+
+    one_level = volume(levels=1)  # 16^3 from 32 px: a single level, which is the finest
+    assert np.array_equal(one_level, volume(levels=1, coarse_seam=3.0))
+    assert not np.array_equal(one_level, volume(levels=1, seam=3.0))
+    # 32^3 from 32 px gives two levels: the coarser one reads coarse_seam
+    two_levels = base.replace(width=32, height=32, depth=32, levels=2)
+    stronger = two_levels.replace(coarse_seam=3.0)
+    assert not np.array_equal(synthesize_solid([pixels], two_levels).voxels,
+                              synthesize_solid([pixels], stronger).voxels)

@@ -55,8 +55,10 @@ class SolidOptions:
     occupancy: float = _spec(0.5, 0.0, 10.0, "penalty on over-used exemplar pixels in the mode")
     search_occupancy: float = _spec(0.0, 0.0, 10.0,
                                     "penalty on over-used exemplar pixels in the search")
-    seam: float = _spec(0.2, 0.0, 10.0,
-                        "search penalty on positions that break their in-plane neighbours' copy")
+    seam: float = _spec(0.5, 0.0, 10.0, "finest level: search penalty on positions that break "
+                        "their in-plane neighbours' copy")
+    coarse_seam: float = _spec(0.6, 0.0, 10.0, "the same penalty at every coarser level (the "
+                               "copy layout the finer levels refine)")
     histogram: float = _spec(0.0, 0.0, 1.0, "how far the volume searched against is moved to "
                              "the exemplar's colour distribution")
     smooth_upsample: float = _spec(1.0, 0.0, 1.0, "weight of the coarser volume's interpolated "

@@ -290,8 +290,11 @@ def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidRe
         cparams = ColourParams(opts.mode_radius, opts.tileable, opts.mode_bandwidth * variance,
                                opts.mode_power, 1e-3 * variance * (2 * rr + 1) ** 2,
                                opts.occupancy)
-        # seam penalty unit: a whole window's feature variance, shared among the 8 neighbours
-        seam_unit = opts.seam * variance * (2 * rr + 1) ** 2 / 8.0
+        # seam penalty unit: a whole window's feature variance, shared among the 8 neighbours.
+        # The coarser levels' penalty sets the copy layout every finer level refines, the
+        # finest level's how fragmented the rendered copies are (docs/solid.md, round 4)
+        seam = opts.seam if level == 0 else opts.coarse_seam
+        seam_unit = seam * variance * (2 * rr + 1) ** 2 / 8.0
         for it in range(iterations):
             sparams = SearchParams(rr, opts.tileable, opts.random_candidates,
                                    coarsest and it < EXHAUSTIVE_ITERATIONS, lo, hi,
