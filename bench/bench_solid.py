@@ -138,9 +138,8 @@ def run(quick: bool = False) -> str:
                     f"{flat['coh_mean']:.2f} | {ratio:.2f} | {worst['coh_p95']:.2f} | "
                     f"{worst['compl']:.2f} | {worst['hist']:.2f} | {worst['scale']:.2f} | "
                     f"{walls[0]:.1f} |")
-                if side == 64 or quick:
-                    write_image(REPO / "docs" / f"solid_{name}.png",
-                                render_preview(result.voxels), 8)
+                write_image(REPO / "docs" / f"solid_{name}_{side}.png",
+                            render_preview(result.voxels), 8)
     lines += ["Quality (texmetrics.py, worst of the three slice axes; 2D: `osmap synth` on the "
               "same exemplar at twice its size, same seed):", "", *table, ""]
 

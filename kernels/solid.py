@@ -48,7 +48,11 @@ SearchParams = namedtuple("SearchParams",
 #   power       float64   proposal weight = (match cost + eps) ** -power
 #   eps         float64
 #   lam         float64   occupancy discount: density / (1 + lam * occupancy)
-ColourParams = namedtuple("ColourParams", "radius wrap bandwidth2 power eps lam")
+#   across      float64   across-plane discount: density / (1 + across * d2 / bandwidth2), d2 the
+#                         squared distance from the proposal's appearance to the mean of the
+#                         volume's two voxels along its slice family's normal (no barcode of
+#                         1-voxel stripes where one family's unrelated slices sit side by side)
+ColourParams = namedtuple("ColourParams", "radius wrap bandwidth2 power eps lam across")
 
 # (row dim, col dim) of each axis' slices in (z, y, x) order
 PLANE = np.array([[0, 1], [0, 2], [1, 2]], np.int64)
@@ -247,12 +251,42 @@ def _gather_proposals(pos, cost, z, y, x, h, w, p, pa, pr, pc, pw):
     return n
 
 
+@njit(cache=True, inline="always")
+def _across_d2(prev, z, y, x, a, f_row, wrap):
+    """Squared distance from appearance f_row to the mean of prev's two voxels next to
+    (z, y, x) along axis a's slice normal (the one inside the volume at a border)."""
+    d = 2 - a  # volume dim (z, y, x order) normal to axis a's slices
+    n_d = prev.shape[d]
+    here = z if d == 0 else (y if d == 1 else x)
+    lo, hi = here - 1, here + 1
+    lo_ok, hi_ok = lo >= 0, hi < n_d
+    if wrap:
+        lo, hi = lo % n_d, hi % n_d
+        lo_ok = hi_ok = True
+    total = 0.0
+    for f in range(prev.shape[3]):
+        acc = 0.0
+        n = 0
+        if lo_ok:
+            acc += prev[lo, y, x, f] if d == 0 else (prev[z, lo, x, f] if d == 1
+                                                       else prev[z, y, lo, f])
+            n += 1
+        if hi_ok:
+            acc += prev[hi, y, x, f] if d == 0 else (prev[z, hi, x, f] if d == 1
+                                                       else prev[z, y, hi, f])
+            n += 1
+        diff = f_row[f] - acc / max(n, 1)
+        total += diff * diff
+    return total
+
+
 @njit(cache=True, parallel=True)
-def colour_pass(pos, cost, feats, ex_of_axis, occ, p, source, vol):
+def colour_pass(pos, cost, feats, ex_of_axis, occ, p, prev, source, vol):
     """Choose every voxel's source among the proposals of its in-plane (2r+1)^2 neighbours.
 
     pos int32[3, Z, Y, X, 2]; cost float32[3, Z, Y, X]; feats float32[E, h, w, F];
-    occ float32[E, h, w] usage of each exemplar pixel (1 = uniform); writes source
+    occ float32[E, h, w] usage of each exemplar pixel (1 = uniform); prev float32[Z, Y, X, F]
+    the volume the search matched (read by the across-plane term); writes source
     int32[Z, Y, X, 3] = (axis, row, col) and vol float32[Z, Y, X, F] = its appearance.
     """
     Z, Y, X = pos.shape[1], pos.shape[2], pos.shape[3]
@@ -291,6 +325,8 @@ def colour_pass(pos, cost, feats, ex_of_axis, occ, p, source, vol):
             best_s = -1.0
             for i in range(n):
                 s = score[i] / (1.0 + p.lam * occ[ex_of_axis[pa[i]], pr[i], pc[i]])
+                if p.across > 0.0:
+                    s /= 1.0 + p.across * _across_d2(prev, z, y, x, pa[i], pf[i], p.wrap) * inv2b
                 if s > best_s:
                     best_s = s
                     best_i = i

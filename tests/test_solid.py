@@ -321,3 +321,18 @@ def test_seam_acts_at_the_finest_level_coarse_seam_at_the_coarser_ones(exemplar)
     stronger = two_levels.replace(coarse_seam=3.0)
     assert not np.array_equal(synthesize_solid([pixels], two_levels).voxels,
                               synthesize_solid([pixels], stronger).voxels)
+
+
+def test_across_term_removes_stripes(samples):
+    """Voxels whose source family's neighbouring slices hold unrelated copies show 1-voxel
+    stripes in the other two families; the across-plane term (preset smooth) removes most."""
+    exemplar = read_image(samples / "cells.png").pixels[::2, ::2].copy()
+
+    def stripes(**changes):
+        options = SolidOptions(width=40, height=40, depth=40, seed=1).replace(**changes)
+        volume = synthesize_solid([exemplar], options).voxels
+        return max(np.mean([ts.stripe_fraction(exemplar, s) for s in slices])
+                   for slices in _axis_slices(volume, count=8).values())
+
+    plain, smooth = stripes(), stripes(**SOLID_PRESETS["smooth"][1])
+    assert smooth < 0.6 * plain, (smooth, plain)  # measured 0.0099 / 0.0291

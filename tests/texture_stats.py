@@ -65,6 +65,29 @@ def feature_scale(exemplar: np.ndarray, output: np.ndarray) -> float:
     return float((f * se).sum() / (f * so).sum())
 
 
+def _box_mean(a: np.ndarray, radius: int = 2) -> np.ndarray:
+    k = 2 * radius + 1
+    c = np.pad(np.pad(a, radius, mode="edge").cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    return (c[k:, k:] - c[:-k, k:] - c[k:, :-k] + c[:-k, :-k]) / (k * k)
+
+
+def _directional_gradients(image: np.ndarray):
+    grey = image[..., :3].mean(axis=2)
+    down = np.abs(np.diff(grey, axis=0))[:, :-1]
+    across = np.abs(np.diff(grey, axis=1))[:-1, :]
+    return _box_mean(down), _box_mean(across)
+
+
+def stripe_fraction(exemplar: np.ndarray, output: np.ndarray, ratio: float = 3.0) -> float:
+    """Share of the output's pixels inside stripes: the 5x5-mean gradient along one axis over
+    `ratio` times the other's, with contrast above the exemplar's median (1-voxel "barcode"
+    patches in volume slices score high; an isotropic texture low)."""
+    floor = float(np.median(np.maximum(*_directional_gradients(exemplar))))
+    down, across = _directional_gradients(output)
+    high, low = np.maximum(down, across), np.minimum(down, across)
+    return float(np.mean((high > floor) & (high > ratio * (low + 1e-6))))
+
+
 def spectrum_distance(exemplar: np.ndarray, output: np.ndarray) -> float:
     """RMS difference (decades) of the normalised radial log power spectra."""
     _, se = _radial_spectrum(exemplar)

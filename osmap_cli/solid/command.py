@@ -64,7 +64,7 @@ and the index (0, 1, 2 = x, y, z exemplar) each voxel was copied from;
 osmap_cli.solid.render_volume(uv, maps) re-renders it on aligned maps.
 
 \b
-Presets (--preset): built-in "default", "structured", "fast", or a TOML
+Presets (--preset): built-in "default", "structured", "fast", "smooth", or a TOML
 file with a [solid] table of tunables (osmap solid does not read the
 [synth] presets). --quality fast|high scales the search on top.
 Memory: the working set is estimated first; a size that does not fit in
@@ -130,7 +130,8 @@ class VolumeSize(click.ParamType):
 @click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True,
               help="Random seed; the same seed gives the same volume.")
 @click.option("--preset", default="default", show_default=True, metavar="NAME|FILE.toml",
-              help="Solid preset: default, structured, fast, or a TOML file with [solid].")
+              help="Solid preset: default, structured, fast, smooth, or a TOML file with "
+                   "[solid].")
 @click.option("--quality", type=click.Choice(("fast", "default", "high")), default="default",
               show_default=True, help="Speed / quality trade-off on top of the preset.")
 @click.option("--tileable", is_flag=True, help="The volume wraps around in x, y and z.")

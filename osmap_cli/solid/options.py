@@ -53,6 +53,8 @@ class SolidOptions:
     mode_radius: int = _spec(1, 0, 4, "proposals from the in-plane (2r+1)^2 neighbours")
     mode_power: float = _spec(0.6, 0.0, 4.0, "proposal weight = match cost ** -mode_power")
     occupancy: float = _spec(0.5, 0.0, 10.0, "penalty on over-used exemplar pixels in the mode")
+    across: float = _spec(0.0, 0.0, 100.0, "mode discount on proposals unlike the volume's "
+                          "two voxels across their slice plane (against 1-voxel stripes)")
     search_occupancy: float = _spec(0.0, 0.0, 10.0,
                                     "penalty on over-used exemplar pixels in the search")
     seam: float = _spec(0.5, 0.0, 10.0, "finest level: search penalty on positions that break "
@@ -125,6 +127,8 @@ SOLID_PRESETS: dict[str, tuple[str, dict]] = {
                    {"patch_radius": 3, "iterations": 3, "knn": 3}),
     "fast": ("previews: less search", {"iterations": 1, "coarse_iterations": 3, "knn": 1,
                                        "random_candidates": 1, "som_steps_per_node": 4.0}),
+    "smooth": ("far fewer 1-voxel stripes and better coherence, but paler (the majority "
+               "colour wins; grains and chips grow and thin out)", {"across": 4.0}),
 }
 
 

@@ -276,7 +276,7 @@ def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidRe
                         np.ones((n_ex, *hw), np.float32),
                         ColourParams(opts.mode_radius, opts.tileable,
                                      opts.mode_bandwidth * variance,
-                                     0.0, 1.0, 0.0), source, vol)
+                                     0.0, 1.0, 0.0, 0.0), vol.copy(), source, vol)
         else:
             pos = upsample_positions(pos, vshape, lo, hi, ex_of_axis)
             source = upsample_source(source, vshape, ex_shapes, ex_of_axis)
@@ -289,7 +289,7 @@ def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidRe
             iterations = opts.iterations
         cparams = ColourParams(opts.mode_radius, opts.tileable, opts.mode_bandwidth * variance,
                                opts.mode_power, 1e-3 * variance * (2 * rr + 1) ** 2,
-                               opts.occupancy)
+                               opts.occupancy, opts.across)
         # seam penalty unit: a whole window's feature variance, shared among the 8 neighbours.
         # The coarser levels' penalty sets the copy layout every finer level refines, the
         # finest level's how fragmented the rendered copies are (docs/solid.md, round 4)
@@ -307,8 +307,9 @@ def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidRe
             search_pass(vol, pos, new_pos, cost, feat_stack, ex_of_axis, knn, occ, sparams)
             pos = new_pos
             new_source = np.empty_like(source)
-            vol = np.empty_like(vol)
-            colour_pass(pos, cost, feat_stack, ex_of_axis, occ, cparams, new_source, vol)
+            searched, vol = vol, np.empty_like(vol)
+            colour_pass(pos, cost, feat_stack, ex_of_axis, occ, cparams, searched, new_source,
+                        vol)
             source = new_source
             done += 2 if coarsest else 1
             if progress is not None:
