@@ -55,10 +55,11 @@ def _metrics(exemplar_path: Path, volume_path: Path) -> dict:
     return json.loads(out.stdout)
 
 
-def _synth_2d(exemplar_path: Path, side: int, folder: Path) -> dict:
+def _synth_2d(exemplar_path: Path, size: str, folder: Path) -> dict:
+    """texmetrics of `osmap synth` from the exemplar at `size` (N or WxH), seed 1."""
     out = folder / f"2d_{exemplar_path.stem}.png"
     subprocess.run([sys.executable, "-m", "osmap_cli.cli", "synth", str(exemplar_path), "-o",
-                    str(out), "--size", str(side), "--seed", "1", "-q"], check=True)
+                    str(out), "--size", size, "--seed", "1", "-q"], check=True)
     return _metrics(exemplar_path, out)
 
 
@@ -84,11 +85,8 @@ def _unseen_material_row(name: str, side: int, folder: Path) -> str:
         write_image(seen_path, seen, 8)
         write_image(held_path, held_out, 8)
         unseen.append(_worst(_metrics(seen_path, held_path))["coh_mean"])
-        synth_path = folder / f"2d_{seen_path.stem}.png"
-        subprocess.run([sys.executable, "-m", "osmap_cli.cli", "synth", str(seen_path), "-o",
-                        str(synth_path), "--size", f"{2 * seen.shape[1]}x{2 * seen.shape[0]}",
-                        "--seed", "1", "-q"], check=True)
-        copying.append(_worst(_metrics(seen_path, synth_path))["coh_mean"])
+        size = f"{2 * seen.shape[1]}x{2 * seen.shape[0]}"
+        copying.append(_worst(_synth_2d(seen_path, size, folder))["coh_mean"])
     ratios = [u / c for u, c in zip(unseen, copying)]
     return (f"| {name} | {side} x {half} | {' / '.join(f'{u:.2f}' for u in unseen)} | "
             f"{' / '.join(f'{c:.2f}' for c in copying)} | "
@@ -131,7 +129,7 @@ def run(quick: bool = False) -> str:
                 vol_path = folder / f"{name}_{side}.npy"
                 np.save(vol_path, result.voxels)
                 worst = _worst(_metrics(ex_path, vol_path))
-                flat = _worst(_synth_2d(ex_path, 2 * ex_side, folder))
+                flat = _worst(_synth_2d(ex_path, str(2 * ex_side), folder))
                 ratio = worst["coh_mean"] / flat["coh_mean"]
                 table.append(
                     f"| {name} | {ex_side} -> {side}^3 | {worst['coh_mean']:.2f} | "

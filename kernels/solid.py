@@ -252,32 +252,31 @@ def _gather_proposals(pos, cost, z, y, x, h, w, p, pa, pr, pc, pw):
 
 
 @njit(cache=True, inline="always")
-def _across_d2(prev, z, y, x, a, f_row, wrap):
-    """Squared distance from appearance f_row to the mean of prev's two voxels next to
-    (z, y, x) along axis a's slice normal (the one inside the volume at a border)."""
-    d = 2 - a  # volume dim (z, y, x order) normal to axis a's slices
-    n_d = prev.shape[d]
-    here = z if d == 0 else (y if d == 1 else x)
-    lo, hi = here - 1, here + 1
-    lo_ok, hi_ok = lo >= 0, hi < n_d
+def _step(z, y, x, d, step, shape, wrap):
+    """Voxel `step` voxels from (z, y, x) along volume dim d; ok False if outside."""
+    q0, q1, q2 = z + step * (d == 0), y + step * (d == 1), x + step * (d == 2)
     if wrap:
-        lo, hi = lo % n_d, hi % n_d
-        lo_ok = hi_ok = True
-    total = 0.0
-    for f in range(prev.shape[3]):
-        acc = 0.0
+        return q0 % shape[0], q1 % shape[1], q2 % shape[2], True
+    ok = 0 <= q0 < shape[0] and 0 <= q1 < shape[1] and 0 <= q2 < shape[2]
+    return q0, q1, q2, ok
+
+
+@njit(cache=True, inline="always")
+def _across_means(prev, z, y, x, wrap, out):
+    """out[a] = mean of prev's two voxels next to (z, y, x) across axis a's slice plane (the
+    one inside the volume at a border)."""
+    shape = (prev.shape[0], prev.shape[1], prev.shape[2])
+    out[:] = 0.0
+    for a in range(3):
         n = 0
-        if lo_ok:
-            acc += prev[lo, y, x, f] if d == 0 else (prev[z, lo, x, f] if d == 1
-                                                       else prev[z, y, lo, f])
-            n += 1
-        if hi_ok:
-            acc += prev[hi, y, x, f] if d == 0 else (prev[z, hi, x, f] if d == 1
-                                                       else prev[z, y, hi, f])
-            n += 1
-        diff = f_row[f] - acc / max(n, 1)
-        total += diff * diff
-    return total
+        for step in (-1, 1):
+            q0, q1, q2, ok = _step(z, y, x, 2 - a, step, shape, wrap)  # dim 2 - a is a's normal
+            if ok:
+                for f in range(prev.shape[3]):
+                    out[a, f] += prev[q0, q1, q2, f]
+                n += 1
+        for f in range(prev.shape[3]):
+            out[a, f] /= max(n, 1)
 
 
 @njit(cache=True, parallel=True)
@@ -303,6 +302,7 @@ def colour_pass(pos, cost, feats, ex_of_axis, occ, p, prev, source, vol):
         pw = np.empty(n_prop)
         pf = np.empty((n_prop, nf), np.float32)
         score = np.empty(n_prop)
+        across_mean = np.empty((3, nf))
         for x in range(X):
             n = _gather_proposals(pos, cost, z, y, x, h, w, p, pa, pr, pc, pw)
             n = _merge_duplicates(pa, pr, pc, pw, n)
@@ -321,12 +321,18 @@ def colour_pass(pos, cost, feats, ex_of_axis, occ, p, prev, source, vol):
                     if kern > 0.0:
                         score[i] += pw[j] * kern
                         score[j] += pw[i] * kern
+            if p.across > 0.0:
+                _across_means(prev, z, y, x, p.wrap, across_mean)
             best_i = 0
             best_s = -1.0
             for i in range(n):
                 s = score[i] / (1.0 + p.lam * occ[ex_of_axis[pa[i]], pr[i], pc[i]])
                 if p.across > 0.0:
-                    s /= 1.0 + p.across * _across_d2(prev, z, y, x, pa[i], pf[i], p.wrap) * inv2b
+                    d2 = 0.0
+                    for f in range(nf):
+                        diff = pf[i, f] - across_mean[pa[i], f]
+                        d2 += diff * diff
+                    s /= 1.0 + p.across * d2 * inv2b
                 if s > best_s:
                     best_s = s
                     best_i = i
