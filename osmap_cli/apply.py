@@ -1,4 +1,4 @@
-"""`osmap apply UV MAP -o OUT`: render a saved position map on another aligned map.
+"""Rendering a saved position map on another aligned map (`osmap apply UV MAP -o OUT`).
 
 A position map is what `osmap synth --uv-out` writes (2-channel float EXR: u = exemplar column,
 v = exemplar row, in exemplar pixels) or what `osmap solid --uv-out FILE.npy` writes (float32
@@ -11,64 +11,10 @@ from __future__ import annotations
 
 import json
 import os
-import time
 
-import click
 import numpy as np
 
 from osmap_cli.errors import OsmapError
-
-APPLY_EPILOG = """\b
-Examples:
-  osmap synth rock.png -o out/rock.png --uv-out out/rock_uv.exr
-  osmap apply out/rock_uv.exr rock_normal.png -o out/rock_normal.png
-  osmap apply out/rock_uv.exr rock_rough.exr -o out/rock_rough.exr --bit-depth 32
-  osmap apply out/marble_uv.npy marble_normal.png -o out/marble_normal.nrrd
-"""
-
-
-@click.command("apply", epilog=APPLY_EPILOG,
-               short_help="Render a saved position map (--uv-out) on another aligned map.")
-@click.argument("uv", type=click.Path(path_type=str), metavar="UV")
-@click.argument("maps", nargs=-1, required=True, type=click.Path(path_type=str),
-                metavar="MAP...")
-@click.option("-o", "--output", required=True, type=click.Path(path_type=str),
-              metavar="OUTPUT", help="Output file; the extension picks the format (images: "
-              ".png .exr .tif .tiff .jpg .jpeg; volumes: .npy .nrrd). An existing file is "
-              "replaced (atomically).")
-@click.option("--normal/--not-normal", "normal", default=None,
-              help="Treat MAP as a tangent-space normal map (decoded, turned with the texture, "
-              "renormalised). [default: when MAP's file name contains 'normal']")
-@click.option("--bit-depth", type=click.Choice(["8", "16", "32"]), default=None,
-              help="Bits per sample of OUTPUT (images). [default: as for osmap synth: the "
-              "format's default, 16 for PNG/TIFF from a 16-bit or float MAP]")
-@click.option("-q", "--quiet", is_flag=True, help="No summary line.")
-def apply_command(uv: str, maps: tuple[str, ...], output: str, normal: bool | None,
-                  bit_depth: str | None, quiet: bool) -> None:
-    """Render the position map UV on MAP and write OUTPUT.
-
-    \b
-    UV is a position map written by 'osmap synth --uv-out' (.exr) or
-    'osmap solid --uv-out' (.npy volume). MAP must be aligned with the
-    exemplar UV was made from (same size); for a volume made from three
-    exemplars give three maps, in the order of the exemplars. OUTPUT is
-    pixel-aligned with the synthesized texture, and records its provenance
-    (see 'osmap info').
-    """
-    started = time.monotonic()
-    for path in (uv, *maps):
-        if os.path.exists(output) and os.path.exists(path) and os.path.samefile(output, path):
-            raise OsmapError(f"{output}: refusing to write over an input file")
-    if uv.lower().endswith(".npy"):
-        _apply_volume(uv, maps, output, normal)
-        if not quiet:
-            click.echo(f"wrote {output} ({time.monotonic() - started:.1f} s)")
-        return
-    if len(maps) != 1:
-        raise click.UsageError(f"a 2D position map takes one MAP, got {len(maps)}")
-    line = apply_image(uv, maps[0], output, normal, bit_depth)
-    if not quiet:
-        click.echo(f"{line} ({time.monotonic() - started:.1f} s)")
 
 
 def _is_normal(path: str, normal: bool | None) -> bool:
@@ -130,9 +76,9 @@ def apply_image(uv: str, map_path: str, output: str, normal: bool | None,
                 bit_depth: str | None) -> str:
     """Render one 2D position map on one map and write it; returns the summary line."""
     from osmap_cli import __version__
-    from osmap_cli.batch import output_depth, write_all
-    from osmap_cli.imageio import read_image
+    from osmap_cli.imageio import encode_image, output_depth, read_image
     from osmap_cli.materials import render_map
+    from osmap_cli.output import write_atomically
     from osmap_cli.synth.render import render_settings
 
     output_depth(output, bit_depth, 1, 8)  # path and --bit-depth checks before any work
@@ -173,14 +119,15 @@ def apply_image(uv: str, map_path: str, output: str, normal: bool | None,
     for key in ("exemplar", "exemplar_size", "preset", "seed", "options"):
         if key in meta:
             metadata[key] = meta[key]
-    write_all([(output, pixels, depth, names, metadata)])
+    write_atomically(output, lambda temp: encode_image(temp, pixels, depth, names, metadata,
+                                                       name=output))
     height, width = pixels.shape[:2]
     plural = "s" * (len(names) != 1)
     return f"wrote {output}: {width}x{height}, {len(names)} channel{plural}, {map_path} " \
            f"through {uv}"
 
 
-def _apply_volume(uv: str, maps: tuple[str, ...], output: str, normal: bool | None) -> None:
+def apply_volume(uv: str, maps: tuple[str, ...], output: str, normal: bool | None) -> None:
     """Render a solid position map (.npy, (Z, Y, X, 3)) on one map per exemplar."""
     from osmap_cli.imageio import read_image
 
@@ -220,11 +167,13 @@ def _apply_volume(uv: str, maps: tuple[str, ...], output: str, normal: bool | No
 
 def _write_volume(output: str, volume: np.ndarray, metadata: dict) -> None:
     from osmap_cli import __version__
+    from osmap_cli.output import write_atomically
     from osmap_cli.solid import volumeio
 
     if not os.path.isdir(os.path.dirname(os.path.abspath(output))):
         raise OsmapError(f"{output}: output directory does not exist")
     fmt = "npy" if output.lower().endswith(".npy") else "nrrd"
     meta = {"software": f"osmap {__version__}", "osmap_version": __version__, **metadata}
-    volumeio.commit([volumeio.stage_volume(output, volume, fmt, depth=32, channel_names=None,
-                                           metadata=meta)])
+    write, _ = volumeio.volume_writer(output, volume, fmt, depth=32, channel_names=None,
+                                      metadata=meta)
+    write_atomically(output, write)

@@ -8,3 +8,25 @@ class OsmapError(Exception):
 
     >>> raise OsmapError("bricks.png: not an image OpenImageIO can read")
     """
+
+
+class UsageError(OsmapError):
+    """A malformed or out-of-range option value found outside click's parsing (exit code 2).
+
+    `option` names the flag, as click's own usage errors do:
+
+    >>> raise UsageError("'abc' is not a number", option="--size")
+    """
+
+    def __init__(self, message: str, option: str | None = None):
+        super().__init__(f"Invalid value for '{option}': {message}" if option else message)
+
+
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP: the run stops like on Ctrl-C (staged outputs are removed, nothing is
+    replaced) and osmap exits with 128 + the signal number. A BaseException, so that no
+    ``except Exception`` swallows it."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum

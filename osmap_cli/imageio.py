@@ -23,9 +23,11 @@ Every failure a user can cause (missing, unreadable, truncated or corrupt input;
 extension or bit depth; a failed write) raises :class:`~osmap_cli.errors.OsmapError` with a
 one-line message that starts with the path as the user gave it.
 
-Writing is atomic: the image is written to a hidden temporary file next to the target and moved
-onto it with :func:`os.replace` only once it is complete, so a failed write never leaves a partial
-output file or a stray temporary file.
+Writing is atomic: :func:`write_image` stages the image in one output transaction
+(:mod:`osmap_cli.output`): written to a hidden temporary file next to the target, synced, read back
+and compared, and moved onto the target only once it is complete, so a failed write (a full disk
+included) never leaves a partial output file or a stray temporary file. :func:`encode_image`
+is the writer a transaction stages with.
 
 Note on OpenImageIO's Python bindings: calling a method on an ``ImageOutput`` whose ``open()``
 failed can crash the interpreter, and ``close()`` returns True even when the writer recorded an
@@ -37,7 +39,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import secrets
+import stat
 import sys
 import tempfile
 from collections.abc import Iterator, Mapping, Sequence
@@ -46,11 +48,13 @@ from dataclasses import dataclass
 import numpy as np
 import OpenImageIO as oiio
 
-from osmap_cli.errors import OsmapError
+from osmap_cli.errors import OsmapError, UsageError
 
 __all__ = [
     "Image",
     "SUPPORTED_EXTENSIONS",
+    "encode_image",
+    "output_depth",
     "output_format",
     "read_image",
     "read_metadata",
@@ -189,6 +193,23 @@ def _bit_depth_of(spec: oiio.ImageSpec) -> int:
 # reading
 
 
+@contextlib.contextmanager
+def _openable(fspath) -> Iterator[str]:
+    """A name OpenImageIO can open for FSPATH: itself, or, for a file name that is not valid
+    UTF-8 (OpenImageIO takes only text), a link with a plain name in a temporary folder."""
+    text = os.fsdecode(fspath)
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        with tempfile.TemporaryDirectory(prefix="osmap-") as folder:
+            link = os.path.join(folder, "input" + os.path.splitext(text)[1].encode(
+                "utf-8", "replace").decode("utf-8"))
+            os.symlink(os.path.abspath(fspath), link)
+            yield link
+        return
+    yield text
+
+
 def read_image(path: str | os.PathLike) -> Image:
     """Read the first subimage of an image file, all channels, as float32 (H, W, C).
 
@@ -198,6 +219,10 @@ def read_image(path: str | os.PathLike) -> Image:
     name = _display(path)
     fspath = os.fspath(path)
     try:
+        if not stat.S_ISREG(os.stat(fspath).st_mode) and not os.path.isdir(fspath):
+            # a named pipe would block (and can be read only once), a device never ends
+            raise OsmapError(f"{name}: not a regular file (a pipe or a device); save the "
+                             "image to a file first")
         with open(fspath, "rb") as handle:
             head = handle.read(8)
             if not head:
@@ -213,8 +238,8 @@ def read_image(path: str | os.PathLike) -> Image:
     # Keep straight (unassociated) alpha as stored; by default OpenImageIO premultiplies PNG/TIFF.
     config.attribute("oiio:UnassociatedAlpha", 1)
     oiio.geterror()  # clear any stale global error
-    with _native_stderr_captured() as native:
-        inp = oiio.ImageInput.open(fspath, config)
+    with _native_stderr_captured() as native, _openable(fspath) as openable:
+        inp = oiio.ImageInput.open(openable, config)
     if inp is None:
         detail = _detail(oiio.geterror(), *native)
         signed = _format_from_signature(head)
@@ -278,8 +303,8 @@ def read_metadata(path: str | os.PathLike) -> dict[str, str]:
     if not os.path.isfile(fspath):
         raise OsmapError(f"{name}: no such file")
     oiio.geterror()
-    with _native_stderr_captured() as native:
-        inp = oiio.ImageInput.open(fspath)
+    with _native_stderr_captured() as native, _openable(fspath) as openable:
+        inp = oiio.ImageInput.open(openable)
     if inp is None:
         raise OsmapError(
             f"{name}: not an image file OpenImageIO can read" + _detail(oiio.geterror(), *native)
@@ -355,14 +380,26 @@ def output_format(
         raise OsmapError(f"{name}: {label} can store at most 4 channels, got {channels} (use .exr)")
     if os.path.isdir(fspath):
         raise OsmapError(f"{name}: is an existing directory, cannot write an image there")
-    directory = os.path.dirname(os.path.abspath(fspath))
-    shown = os.path.dirname(fspath) or "."
-    if not os.path.isdir(directory):
-        what = "is not a directory" if os.path.exists(directory) else "does not exist"
-        raise OsmapError(f"{name}: output directory {shown} {what}")
-    if not os.access(directory, os.W_OK | os.X_OK):
-        raise OsmapError(f"{name}: output directory {shown} is not writable")
+    from osmap_cli.output import check_parent
+
+    check_parent(name)
     return fmt, depth
+
+
+def output_depth(output: str, bit_depth: str | None, channels: int, input_depth: int):
+    """(format, bit depth) for OUTPUT: --bit-depth, else the format's default raised to keep
+    the exemplar's precision. A bad --bit-depth is a usage error."""
+    fmt, default_depth = output_format(output, None, channels)
+    if bit_depth is not None:
+        try:
+            return output_format(output, int(bit_depth), channels)
+        except OsmapError as exc:
+            raise UsageError(str(exc), option="--bit-depth") from None
+    if fmt == "png" and input_depth >= 16:
+        return fmt, 16
+    if fmt == "tiff" and input_depth > default_depth:
+        return fmt, input_depth
+    return fmt, default_depth
 
 
 def _write_pixels(out: oiio.ImageOutput, data: np.ndarray) -> bool:
@@ -406,8 +443,32 @@ def write_image(
     JPEG cannot store alpha: for a 2- or 4-channel image whose last channel is named "A" (which
     is the case for the default names) that channel is silently dropped; any other 2- or
     4-channel image raises OsmapError.
+
+    >>> write_image("out.png", np.zeros((8, 8, 3)), metadata={"note": "black"})
     """
+    from osmap_cli.output import write_atomically
+
     name = _display(path)
+    data = np.asarray(pixels)
+    output_format(path, bit_depth, data.shape[2] if data.ndim == 3 else 1)
+    write_atomically(name, lambda temp: encode_image(temp, pixels, bit_depth, channel_names,
+                                                     metadata, name=name))
+
+
+def encode_image(
+    path: str | os.PathLike,
+    pixels: np.ndarray,
+    bit_depth: int | None = None,
+    channel_names: Sequence[str] | None = None,
+    metadata: Mapping[str, str] | None = None,
+    name: str | None = None,
+) -> None:
+    """Write the image straight into ``path`` (not atomic: see :func:`write_image`), then read it
+    back and check that it holds exactly these pixels (JPEG: that it decodes completely).
+    ``name`` is the path shown in messages (the target of a staged write)."""
+
+
+    name = name or _display(path)
     data = np.asarray(pixels)
     channels = data.shape[2] if data.ndim == 3 else 1
     fmt, depth = output_format(path, bit_depth, channels)
@@ -452,7 +513,8 @@ def write_image(
             key = str(key)
             if key.startswith(_META_PREFIX):
                 key = key[len(_META_PREFIX) :]
-            clean[key] = str(value)
+            # a file name that is not UTF-8 cannot be stored as text: its odd bytes become U+FFFD
+            clean[key] = str(value).encode("utf-8", "surrogateescape").decode("utf-8", "replace")
         if fmt in _FORMATS_WITHOUT_ATTRIBUTES:
             spec.attribute("ImageDescription", _DESCRIPTION_MARKER + json.dumps(clean))
         else:
@@ -460,10 +522,15 @@ def write_image(
                 spec.attribute(_META_PREFIX + key, value)
 
     fspath = os.fsdecode(os.fspath(path))
-    directory, base = os.path.split(os.path.abspath(fspath))
-    ext = os.path.splitext(base)[1]
-    temp = os.path.join(directory, f".{base}.tmp-{secrets.token_hex(6)}{ext}")
+    if fmt == "jpeg" and hasattr(os, "fork"):
+        _in_child(lambda: _oiio_write(fspath, name, label, fmt, spec, data), name, label)
+    else:
+        _oiio_write(fspath, name, label, fmt, spec, data)
+    _verify(fspath, name, label, fmt, depth, data)
 
+
+def _oiio_write(fspath: str, name: str, label: str, fmt: str, spec, data: np.ndarray) -> None:
+    """Hand the pixels to OpenImageIO's writer; every failure it reports raises OsmapError."""
     oiio.geterror()
     try:
         out = oiio.ImageOutput.create(fmt)
@@ -472,7 +539,7 @@ def write_image(
                 f"{name}: OpenImageIO has no {label} writer" + _detail(oiio.geterror())
             )
         with _native_stderr_captured() as native:
-            opened = out.open(temp, spec)
+            opened = out.open(fspath, spec)
         if not opened:
             raise OsmapError(
                 f"{name}: cannot create output file" + _detail(out.geterror(), *native)
@@ -489,12 +556,80 @@ def write_image(
                 f"{name}: failed to write {label} file"
                 + (_detail(error, *native) or " (OpenImageIO reported a write failure)")
             )
-        os.replace(temp, fspath)
-    except BaseException as exc:
-        with contextlib.suppress(OSError):
-            os.remove(temp)
-        if isinstance(exc, OsmapError) or not isinstance(exc, Exception):
-            raise
-        if isinstance(exc, OSError):
-            raise OsmapError(f"{name}: cannot write file ({exc.strerror or exc})") from exc
+    except OsmapError:
+        raise
+    except OSError as exc:
+        raise OsmapError(f"{name}: cannot write file ({exc.strerror or exc})") from exc
+    except Exception as exc:
         raise OsmapError(f"{name}: failed to write {label} file ({exc!r})") from exc
+
+
+def _in_child(write, name: str, label: str) -> None:
+    """Run write() in a forked child process. libjpeg ends the whole process (exit(1), no
+    message) when a write fails, e.g. on a full disk; in a child that only ends the child."""
+    read_end, write_end = os.pipe()
+    sys.stderr.flush()
+    pid = os.fork()
+    if pid == 0:  # the child: never returns
+        code = 1
+        try:
+            os.close(read_end)
+            oiio.attribute("threads", 1)  # the parent's thread pool did not come along
+            write()
+            code = 0
+        except OsmapError as exc:
+            os.write(write_end, str(exc).encode("utf-8", "replace")[:4000])
+        except BaseException as exc:  # noqa: BLE001 - reported by the parent
+            os.write(write_end, f"{name}: failed to write {label} file ({exc!r})".encode())
+        finally:
+            os._exit(code)
+    os.close(write_end)
+    with os.fdopen(read_end, "rb") as pipe:
+        message = pipe.read().decode("utf-8", "replace")
+    _, status = os.waitpid(pid, 0)
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise OsmapError(message or f"{name}: failed to write {label} file (the writer "
+                         "stopped: is the disk full?)")
+
+
+# The last bytes of a complete file: a writer that lost its tail to a full disk fails here.
+_TRAILERS = {"png": b"IEND\xaeB`\x82", "jpeg": b"\xff\xd9"}
+
+
+def _verify(fspath: str, name: str, label: str, fmt: str, depth: int, data: np.ndarray) -> None:
+    """Read the written file back: it must decode completely and (except JPEG) give exactly
+    the pixels that were written. OpenImageIO's writers do not all report a failed write (a
+    full disk can leave a cut-off PNG behind a successful close()), so this is the check."""
+    incomplete = OsmapError(f"{name}: failed to write {label} file (the file on disk is "
+                            "incomplete: is the disk full?)")
+    trailer = _TRAILERS.get(fmt)
+    if trailer is not None:
+        with open(fspath, "rb") as handle:
+            handle.seek(0, os.SEEK_END)
+            size = handle.tell()
+            handle.seek(max(0, size - len(trailer)))
+            if handle.read() != trailer:
+                raise incomplete
+    oiio.geterror()
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)  # the straight values that were written
+    with _native_stderr_captured():
+        inp = oiio.ImageInput.open(fspath, config)
+        if inp is None:
+            oiio.geterror()
+            raise incomplete
+        try:
+            stored = inp.read_image(0, 0, 0, data.shape[2], "float" if data.dtype.kind == "f"
+                                    else data.dtype.name)
+            failed = stored is None or bool(inp.geterror())
+        finally:
+            inp.close()
+    if failed or stored.shape[:2] != data.shape[:2]:
+        raise incomplete
+    if fmt == "jpeg":
+        return
+    expected = data.astype(np.float16).astype(np.float32) if fmt == "openexr" and depth == 16 \
+        else data
+    if not np.array_equal(stored.reshape(data.shape), expected, equal_nan=True):
+        raise incomplete
+

@@ -16,26 +16,41 @@ import sys
 __all__ = ["ProgressBar", "latch_interrupts", "reset_interrupt"]
 
 _STEPS = 1000  # bar resolution: 0.1 %
-_interrupted = [False]
+_interrupted: list = [None]  # the exception a latched signal raises again at the next step
+
+_STOP_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
+
+
+def _stop_exception(signum: int) -> BaseException:
+    import signal
+
+    if signum == signal.SIGINT:
+        return KeyboardInterrupt()
+    from osmap_cli.errors import Terminated
+
+    return Terminated(signum)
 
 
 def latch_interrupts() -> None:
-    """Make Ctrl-C stick: the SIGINT handler raises KeyboardInterrupt as usual and also sets a
-    flag that the next progress call raises on, so an interrupt that lands inside a library
-    which swallows it (Numba compiling a kernel on the first run) still stops the job there.
-    Call from the main thread."""
+    """Make Ctrl-C, SIGTERM and SIGHUP stick: the handler raises (KeyboardInterrupt, or
+    osmap_cli.errors.Terminated) as usual and also records the signal, so that the next
+    progress call raises again: a signal that lands inside a library which swallows it (Numba
+    compiling a kernel on the first run) still stops the job there. Call from the main
+    thread."""
     import signal
 
     def handler(signum, frame):
-        _interrupted[0] = True
-        raise KeyboardInterrupt
+        _interrupted[0] = signum
+        raise _stop_exception(signum)
 
-    signal.signal(signal.SIGINT, handler)
+    for name in _STOP_SIGNALS:
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), handler)
 
 
 def reset_interrupt() -> None:
-    """Forget a latched Ctrl-C (for callers that run several commands in one process)."""
-    _interrupted[0] = False
+    """Forget a latched signal (for callers that run several commands in one process)."""
+    _interrupted[0] = None
 
 
 class ProgressBar:
@@ -57,8 +72,8 @@ class ProgressBar:
             )
 
     def __call__(self, fraction: float) -> None:
-        if _interrupted[0]:
-            raise KeyboardInterrupt
+        if _interrupted[0] is not None:
+            raise _stop_exception(_interrupted[0])
         fraction = float(fraction)
         if not fraction > 0.0:  # also ignores NaN
             return

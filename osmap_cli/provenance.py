@@ -20,20 +20,10 @@ import shlex
 
 from osmap_cli import __version__
 
-__all__ = ["image_metadata", "reproduce_command", "synth_args"]
+__all__ = ["image_metadata", "read_provenance", "reproduce_command", "synth_args"]
 
-# flag defaults of the non-tunable options (SynthOptions' defaults, see cli.py copies)
-_PLAIN = (("scale", 1.0), ("orientation", 0.0), ("anisotropy", 1.0))
-
-
-def _number(value) -> str:
-    """The shortest text that reads back as exactly `value`."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int):
-        return str(value)
-    value = float(value)
-    return str(int(value)) if value.is_integer() and abs(value) < 1e15 else repr(value)
+# the plain (not tunable) numeric flags written when they differ from their default
+_PLAIN = ("scale", "orientation", "anisotropy")
 
 
 def synth_args(options, preset: str, preset_values: dict | None, bit_depth: int,
@@ -44,25 +34,24 @@ def synth_args(options, preset: str, preset_values: dict | None, bit_depth: int,
     `preset_values` is the built-in preset's table; None for a preset *file*, in which case
     every tunable is written out (the file may be gone or changed when the command is re-run).
     """
+    from osmap_cli.options import flag_args, number_text
     from osmap_cli.synth.options import SynthOptions
 
+    defaults = SynthOptions()
     args = ["--size", f"{options.width}x{options.height}", "--seed", str(options.seed),
             "--preset", preset]
-    for name, default in _PLAIN:
+    for name in _PLAIN:
         value = getattr(options, name)
-        if value != default:
-            args += ["--" + name, _number(value)]
+        if value != getattr(defaults, name):
+            args += ["--" + name, number_text(value)]
     if options.tileable:
         args.append("--tileable")
     if options.quality != "default":
         args += ["--quality", options.quality]
     if options.method != "osmap":
         args += ["--method", options.method]
-    baseline = SynthOptions().replace(**(preset_values or {}))
-    for name in SynthOptions.tunables():
-        value = getattr(options, name)
-        if preset_values is None or value != getattr(baseline, name):
-            args += ["--" + name.replace("_", "-"), _number(value)]
+    baseline = None if preset_values is None else defaults.replace(**preset_values)
+    args += flag_args(options, baseline)
     args += ["--bit-depth", str(bit_depth)]
     if orientation_field:
         args += ["--orientation-field", os.path.basename(orientation_field)]
@@ -111,3 +100,26 @@ def reproduce_command(meta: dict[str, str], path: str) -> str | None:
         output = stem + "_image" + meta.get("image_ext", ".png")
         args += ["--uv-out", path]
     return shlex.join(["osmap", command, *inputs, "-o", output, *args])
+
+
+def read_provenance(path: str) -> dict[str, str]:
+    """The osmap key/value pairs stored in an image or a NRRD file."""
+    from osmap_cli.errors import OsmapError
+
+    if os.path.isdir(path):
+        raise OsmapError(f"{path}: is a directory (give one slice file)")
+    if not os.path.isfile(path):
+        raise OsmapError(f"{path}: no such file")
+    with open(path, "rb") as handle:
+        if handle.read(4) == b"NRRD":
+            from osmap_cli.solid.volumeio import read_nrrd_header
+
+            handle.seek(0)
+            return read_nrrd_header(handle, path)[1]
+    if path.lower().endswith(".npy"):
+        raise OsmapError(f"{path}: .npy files cannot store metadata (no provenance)")
+    from osmap_cli.imageio import read_metadata
+
+    return read_metadata(path)
+
+

@@ -9,7 +9,7 @@ import os
 
 import pytest
 
-from osmap_cli.cli import NAME_FIELDS
+from osmap_cli.commands.synth import NAME_FIELDS
 from osmap_cli.imageio import read_image, write_image
 
 FAST = ("--size", "32", "--preset", "fast", "--levels", "2")

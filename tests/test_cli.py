@@ -22,7 +22,6 @@ import pytest
 from osmap_cli import __version__, cli
 from osmap_cli.errors import OsmapError
 from osmap_cli.imageio import read_image, read_metadata, write_image
-from osmap_cli.synth import options as synth_options
 from osmap_cli.synth.options import SynthOptions
 from osmap_cli.synth.render import render
 
@@ -130,22 +129,25 @@ def test_help_imports_no_heavy_modules_and_is_fast(osmap_exe):
     assert elapsed < 3.0  # about 0.1 s; generous for loaded CI machines
 
 
-def test_cli_copies_match_synth_options():
-    """cli.py keeps copies of option values (so that --help need not import numba)."""
+def test_flags_and_usage_reference_come_from_the_declarations(run_cli, repo_root):
+    """Each tunable is declared once (osmap_cli.options): its tuning flag on synth and solid,
+    its help and range, and the rows of docs/usage.md are made from that declaration."""
+    from osmap_cli.options import flag, tunables, usage_rows
+    from osmap_cli.solid.options import SolidOptions
+
+    usage = (repo_root / "docs" / "usage.md").read_text()
+    for command, cls in (("synth", SynthOptions), ("solid", SolidOptions)):
+        result = run_cli(command, "--help")
+        text = " ".join(result.out.split())
+        for name, spec in tunables(cls).items():
+            assert flag(name) in text, (command, name)
+            assert " ".join(spec.help.split()[:4]) in text, (command, name)
+        for row in usage_rows(cls):
+            assert row in usage, row
     defaults = SynthOptions()
-    assert cli.QUALITIES == synth_options.QUALITIES
-    assert cli.METHODS == synth_options.METHODS
-    assert cli.DEFAULT_SIZE == defaults.width == defaults.height
-    assert cli.DEFAULT_SEED == defaults.seed
-    assert cli.DEFAULT_SCALE == defaults.scale
-    assert cli.DEFAULT_ORIENTATION == defaults.orientation
-    assert cli.DEFAULT_ANISOTROPY == defaults.anisotropy
     assert defaults.quality == "default" and defaults.method == "osmap"
     assert defaults.tileable is False
-    tunables = SynthOptions.tunables()
-    assert [name for name, _, _ in cli.TUNING_FLAGS] == list(tunables)
-    for name, kind, _ in cli.TUNING_FLAGS:
-        assert type(tunables[name].default) is kind, name
+
 
 
 # ---------------------------------------------------------------------------------------------
@@ -493,14 +495,14 @@ def test_failed_second_write_leaves_nothing(run_cli, small_samples, tmp_path, mo
     """If --uv-out cannot be written, the main output is not written (or replaced) either."""
     from osmap_cli import imageio
 
-    real_write = imageio.write_image
+    real_write = imageio.encode_image
 
     def failing_write(path, *args, **kwargs):
         if str(path).endswith(".exr"):
             raise OsmapError(f"{path}: failed to write EXR file (disk full)")
         return real_write(path, *args, **kwargs)
 
-    monkeypatch.setattr(imageio, "write_image", failing_write)
+    monkeypatch.setattr(imageio, "encode_image", failing_write)
     out = tmp_path / "out.png"
     out.write_bytes(b"previous output")
     result = run_cli("synth", small_samples / "cells.png", "-o", out, "--uv-out",

@@ -11,11 +11,11 @@ import pytest
 import texture_stats as ts
 
 from osmap_cli.imageio import read_image, write_image
+from osmap_cli.presets import load_preset
 from osmap_cli.solid import SolidOptions, render_volume, synthesize_solid
-from osmap_cli.solid.options import SOLID_PRESETS
 from osmap_cli.solid.volumeio import read_volume
 
-FAST = SOLID_PRESETS["fast"][1]
+FAST = load_preset("fast", "solid")
 
 SIDE = 16
 
@@ -334,5 +334,5 @@ def test_across_term_removes_stripes(samples):
         return max(np.mean([ts.stripe_fraction(exemplar, s) for s in slices])
                    for slices in _axis_slices(volume, count=8).values())
 
-    plain, smooth = stripes(), stripes(**SOLID_PRESETS["smooth"][1])
+    plain, smooth = stripes(), stripes(**load_preset("smooth", "solid"))
     assert smooth < 0.6 * plain, (smooth, plain)  # measured 0.0099 / 0.0291

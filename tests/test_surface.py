@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from osmap_cli.surface.command import surface_command
+from osmap_cli.commands.surface import surface_command
 from osmap_cli.surface.fit import build_map, fit_best, parse_grid, parse_vary, shape_config
 from osmap_cli.surface.metrics import evaluate, grid_edges, grid_quads
 from osmap_cli.surface.shapes import Roll, Torus
@@ -374,7 +374,7 @@ def test_command_module_imports_no_numba():
     import subprocess
     import sys
 
-    code = ("import sys; import osmap_cli.surface.command; "
+    code = ("import sys; import osmap_cli.commands.surface; "
             "print(any(m.split('.')[0] in ('numba', 'numpy') for m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"

@@ -11,24 +11,21 @@ Formats (`FORMATS`):
 - ``nrrd``: a NRRD 0004 file (sizes C X Y Z, little-endian float, raw or gzip encoding) with the
   provenance as ``osmap:KEY:=VALUE`` key/value fields.
 
-Every output is staged next to its target (a hidden file or folder) and moved onto it only when
-all outputs of a run are complete (`Staged`, `commit`), so an error leaves nothing behind.
+`volume_writer` gives what an output transaction (osmap_cli.output.Outputs) stages: every output
+of a run is written next to its target and moved onto it only when all are complete.
 """
 
 from __future__ import annotations
 
-import contextlib
 import gzip
 import math
 import os
 import re
-import secrets
-import shutil
-from dataclasses import dataclass
 
 import numpy as np
 
 from osmap_cli.errors import OsmapError
+from osmap_cli.output import check_parent, synced_file, write_bytes
 
 FORMATS = ("npy", "png", "exr", "atlas", "nrrd")
 NRRD_ENCODINGS = ("raw", "gzip")
@@ -55,13 +52,7 @@ def format_for(path: str, fmt: str | None) -> str:
 def check_target(path: str, fmt: str) -> None:
     """Refuse a path that cannot receive this format, before any work."""
     fspath = path.rstrip("/" + os.sep) or path
-    parent = os.path.dirname(os.path.abspath(fspath))
-    if not os.path.isdir(parent):
-        raise OsmapError(f"{path}: output directory {os.path.dirname(fspath) or '.'} "
-                         "does not exist")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise OsmapError(f"{path}: output directory {os.path.dirname(fspath) or '.'} "
-                         "is not writable")
+    check_parent(path)
     if fmt in ("png", "exr"):
         if os.path.isfile(fspath):
             raise OsmapError(f"{path}: is a file; slices need a folder")
@@ -175,92 +166,43 @@ def read_nrrd(path: str) -> tuple[np.ndarray, dict]:
 # staged writing
 
 
-@dataclass
-class Staged:
-    """An output written to `temp` (a hidden sibling of `target`), not yet in place."""
-
-    temp: str
-    target: str
-
-    def discard(self) -> None:
-        if os.path.isdir(self.temp):
-            shutil.rmtree(self.temp, ignore_errors=True)
-        else:
-            with contextlib.suppress(OSError):
-                os.remove(self.temp)
+def write_npy(path: str, array: np.ndarray) -> None:
+    """The float32 array as a .npy file (synced; the size checked)."""
+    array = np.ascontiguousarray(array, np.float32)
+    with synced_file(path) as handle:
+        np.save(handle, array)
+        size = handle.tell()
+    if os.path.getsize(path) != size:
+        raise OsmapError(f"{path}: incomplete write")
 
 
-def _temp_for(target: str) -> str:
-    directory, base = os.path.split(os.path.abspath(target.rstrip("/" + os.sep)))
-    return os.path.join(directory, f".{base}.osmap-{secrets.token_hex(6)}")
-
-
-def commit(staged: list[Staged]) -> None:
-    """Move every staged output onto its target (a previous slice folder is replaced)."""
-    for item in staged:
-        target = item.target.rstrip("/" + os.sep) or item.target
-        if os.path.isdir(item.temp) and os.path.isdir(target):
-            old = _temp_for(target)
-            os.replace(target, old)
-            os.replace(item.temp, target)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(item.temp, target)
-
-
-def discard(staged: list[Staged]) -> None:
-    for item in staged:
-        item.discard()
-
-
-def stage_npy(path: str, array: np.ndarray) -> Staged:
-    temp = _temp_for(path) + ".npy"
-    try:
-        with open(temp, "wb") as handle:
-            np.save(handle, np.ascontiguousarray(array, np.float32))
-    except OSError as exc:
-        Staged(temp, path).discard()
-        raise OsmapError(f"{path}: cannot write file ({exc.strerror or exc})") from None
-    return Staged(temp, path)
-
-
-def stage_volume(path: str, volume: np.ndarray, fmt: str, *, depth: int, channel_names,
-                 metadata: dict, encoding: str = "raw") -> Staged:
-    """Write the volume in `fmt` next to `path`; returns the Staged output."""
-    from osmap_cli.imageio import write_image
+def volume_writer(path: str, volume: np.ndarray, fmt: str, *, depth: int, channel_names,
+                  metadata: dict, encoding: str = "raw"):
+    """(write(temp), is_folder): how to write the volume in `fmt`, for Outputs.stage(path, ...)."""
+    from osmap_cli.imageio import encode_image
 
     if fmt == "npy":
-        return stage_npy(path, volume)
-    temp = _temp_for(path)
-    staged = Staged(temp, path)
-    try:
-        if fmt == "nrrd":
-            with open(temp, "wb") as handle:
-                handle.write(nrrd_bytes(volume, metadata, encoding))
-        elif fmt == "atlas":
-            Z, Y, X, _ = volume.shape
-            grid = atlas_grid(path, Z)
-            meta = dict(metadata, atlas_grid=f"{grid[0]}x{grid[1]}", atlas_slices=str(Z),
-                        atlas_slice_size=f"{X}x{Y}")
-            temp_png = temp + ".png"
-            staged = Staged(temp_png, path)
-            write_image(temp_png, to_atlas(volume, grid), depth, channel_names=channel_names,
-                        metadata=meta)
-        else:
-            os.mkdir(temp)
-            digits = max(4, len(str(volume.shape[0] - 1)))
-            for z in range(volume.shape[0]):
-                name = os.path.join(temp, f"slice_{z:0{digits}d}.{fmt}")
-                write_image(name, volume[z], 32 if fmt == "exr" else depth,
-                            channel_names=channel_names, metadata=dict(metadata, slice=str(z)))
-    except BaseException as exc:
-        staged.discard()
-        if isinstance(exc, OsmapError):
-            raise OsmapError(str(exc).replace(staged.temp, path)) from None
-        if isinstance(exc, OSError):
-            raise OsmapError(f"{path}: cannot write ({exc.strerror or exc})") from None
-        raise
-    return staged
+        return (lambda temp: write_npy(temp, volume)), False
+    if fmt == "nrrd":
+        return (lambda temp: write_bytes(temp, nrrd_bytes(volume, metadata, encoding))), False
+    if fmt == "atlas":
+        Z, Y, X, _ = volume.shape
+        grid = atlas_grid(path, Z)
+        meta = dict(metadata, atlas_grid=f"{grid[0]}x{grid[1]}", atlas_slices=str(Z),
+                    atlas_slice_size=f"{X}x{Y}")
+        return (lambda temp: encode_image(temp, to_atlas(volume, grid), depth,
+                                          channel_names=channel_names, metadata=meta,
+                                          name=path)), False
+
+    def write_slices(folder: str) -> None:
+        digits = max(4, len(str(volume.shape[0] - 1)))
+        for z in range(volume.shape[0]):
+            name = f"slice_{z:0{digits}d}.{fmt}"
+            encode_image(os.path.join(folder, name), volume[z], 32 if fmt == "exr" else depth,
+                         channel_names=channel_names, metadata=dict(metadata, slice=str(z)),
+                         name=os.path.join(path, name))
+
+    return write_slices, True
 
 
 # ---------------------------------------------------------------------------------------------

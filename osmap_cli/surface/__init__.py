@@ -7,8 +7,9 @@ Modules, one job each:
 - fit.py      --grid / --vary parsing, building and training the OSMap (or the classic SOM)
 - metrics.py  shortcut edges, flipped quads, corner angles, fit error, windings
 - geodesic.py surface distances on sampled surfaces without a parameterisation
-- export.py   OBJ / PLY writing, atomic writes
+- export.py   OBJ / PLY text and the output path checks
 - preview.py  numpy wireframe rasteriser for the preview PNG
-- command.py  the click command `surface_command`
+- job.py      the options as one record (SurfaceRequest) and the run (SurfaceJob)
+  (the click command is osmap_cli.commands.surface)
 Nothing numba-heavy is imported here.
 """

@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import io
 import os
-import tempfile
 
 import numpy as np
 
 from osmap_cli.errors import OsmapError
+from osmap_cli.output import check_parent, write_bytes
 from osmap_cli.surface.metrics import grid_quads
 
 
@@ -29,31 +29,13 @@ def check_output_path(path: str, option: str, extensions: tuple[str, ...]) -> No
                          f"(use {', '.join(extensions)})")
     if os.path.isdir(path):
         raise OsmapError(f"{option} {path}: is an existing directory")
-    directory = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(directory):
-        raise OsmapError(f"{option} {path}: output directory {os.path.dirname(path) or '.'} "
-                         "does not exist")
-    if not os.access(directory, os.W_OK | os.X_OK):
-        raise OsmapError(f"{option} {path}: output directory is not writable")
+    check_parent(path, f"{option} {path}")
 
 
-def atomic_write(path: str, data: str | bytes) -> None:
-    """Write to a temporary file in the same directory, then os.replace it onto path."""
-    directory = os.path.dirname(os.path.abspath(path))
-    mode = "w" if isinstance(data, str) else "wb"
-    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp",
-                               dir=directory)
-    try:
-        with os.fdopen(fd, mode, **({"encoding": "utf-8", "newline": "\n"}
-                                    if mode == "w" else {})) as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except OSError as e:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise OsmapError(f"{path}: cannot write ({e.strerror or e})") from None
+def grid_writer(path: str, grid_xyz: np.ndarray, wrap: tuple[bool, bool], header: str = ""):
+    """write(temp) for Outputs.stage: the grid as OBJ or PLY by PATH's extension."""
+    text = (ply_text if path.lower().endswith(".ply") else obj_text)(grid_xyz, wrap, header)
+    return lambda temp: write_bytes(temp, text.encode("utf-8"))
 
 
 def _uv_axis(n: int, wrapped: bool) -> np.ndarray:
@@ -98,11 +80,3 @@ def ply_text(grid_xyz: np.ndarray, wrap: tuple[bool, bool], header: str = "") ->
     np.savetxt(out, vert, fmt="%.7g %.7g %.7g %.7g %.7g")
     np.savetxt(out, quads, fmt="4 %d %d %d %d")
     return out.getvalue()
-
-
-def write_grid(path: str, grid_xyz: np.ndarray, wrap: tuple[bool, bool], header: str = "") -> None:
-    """OBJ or PLY by the extension of path, written atomically."""
-    if path.lower().endswith(".ply"):
-        atomic_write(path, ply_text(grid_xyz, wrap, header))
-    else:
-        atomic_write(path, obj_text(grid_xyz, wrap, header))

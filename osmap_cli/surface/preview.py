@@ -102,10 +102,3 @@ def render_preview(grid_xyz: np.ndarray, wrap: tuple[bool, bool], points=None, f
         image[:, half] = np.clip(1.0 - absorb[:, half], 0.0, 1.0)
     image[:, size - 1: size + 1] = 0.75  # divider
     return image
-
-
-def write_preview(path: str, grid_xyz, wrap, points=None, flagged=None, size: int = 480):
-    """Render and write atomically (OpenImageIO via osmap_cli.imageio)."""
-    from osmap_cli.imageio import write_image
-
-    write_image(path, render_preview(grid_xyz, wrap, points, flagged, size))

@@ -1,85 +1,81 @@
-"""Every option of `osmap synth`, validated before any work starts.
+"""Every option of `osmap synth`, declared once and validated before any work starts.
 
 A session object in the spirit of Embark's texture-synthesis: `SynthOptions(...).validated()`
 either returns the resolved options or raises OsmapError naming the bad value and the allowed
-range. Presets are plain mappings of the tunable fields below.
+range. The tunable fields are the preset keys and the tuning flags (osmap_cli.options).
+
+>>> SynthOptions(width=128, height=64, seed=7).validated().width
+128
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-import numpy as np
-
+from osmap_cli import options as declare
 from osmap_cli.errors import OsmapError
+from osmap_cli.options import option
 
 METHODS = ("osmap", "paper")
 QUALITIES = ("fast", "default", "high")
-
-
-def _spec(default, lo=None, hi=None, doc=""):
-    return field(default=default, metadata={"lo": lo, "hi": hi, "doc": doc})
-
-
-def check_number(option: str, value, f: dataclasses.Field, where: str = "") -> None:
-    """Raise OsmapError unless value is a finite number of f's kind inside f's [lo, hi]."""
-    kind = int if isinstance(f.default, int) else float
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
-        raise OsmapError(f"{where}{option}: expected a number, got {value!r}")
-    if kind is int and float(value) != int(value):
-        raise OsmapError(f"{where}{option}: expected a whole number, got {value!r}")
-    if not math.isfinite(float(value)):
-        raise OsmapError(f"{where}{option}: expected a finite number, got {value!r}")
-    lo, hi = f.metadata["lo"], f.metadata["hi"]
-    if not lo <= value <= hi:
-        raise OsmapError(f"{where}{option}: {value!r} is out of range (allowed {lo} to {hi})")
 
 
 @dataclass(frozen=True)
 class SynthOptions:
     """What to synthesize and how. Units: pixels of the output unless stated."""
 
-    width: int = _spec(256, 8, 16384, "output width")
-    height: int = _spec(256, 8, 16384, "output height")
-    seed: int = _spec(0, 0, 2**63 - 1, "random seed")
-    scale: float = _spec(1.0, 0.25, 8.0, "feature size relative to the exemplar")
-    orientation: float = _spec(0.0, -360.0, 360.0, "rotation of the texture, degrees")
-    anisotropy: float = _spec(1.0, 0.25, 4.0, "stretch along the orientation direction")
-    tileable: bool = _spec(False, doc="output wraps around seamlessly")
-    method: str = _spec("osmap", doc="osmap (default pipeline) or paper (the published OS-Map)")
-    quality: str = _spec("default", doc="fast, default or high")
-    # --- tunables (presets) ---
-    levels: int = _spec(0, 0, 8, "pyramid levels (0: from the exemplar size, coarsest ~16 px)")
-    patch_radius: int = _spec(2, 1, 4, "matching window half-size, in feature vectors")
-    sweeps: int = _spec(6, 0, 20, "coherence sweeps per level")
-    coarse_sweeps: int = _spec(8, 0, 40, "coherence sweeps at the coarsest level")
-    occupancy: float = _spec(0.5, 0.0, 10.0, "penalty on over-used exemplar regions")
-    seam: float = _spec(1.0, 0.0, 10.0, "penalty on positions that break their neighbours' copy")
-    max_copy: float = _spec(56.0, 0.0, 4096.0, "copy regions wider than this, in output pixels, "
-                            "are broken up (0: off)")
-    align: int = _spec(4, 0, 8, "copies move whole by up to this many pixels to match at their "
-                       "borders (coarsest level; halved per finer level; 0: off)")
-    blend: int = _spec(2, 0, 8, "seam blending radius when rendering, pixels (0: hard copies)")
-    knn: int = _spec(4, 0, 16, "similar-position candidates (k-coherence)")
-    random_candidates: int = _spec(4, 0, 16, "PatchMatch random-search candidates")
-    feature_dims: int = _spec(16, 1, 32, "appearance-space dimensions")
-    window_scale: float = _spec(1.0, 0.1, 4.0, "winner-search window / exemplar extent")
-    som_steps_per_node: float = _spec(20.0, 0.0, 1000.0, "OS-Map steps per map node")
-    som_sigma_max: float = _spec(1.5, 0.1, 256.0, "OS-Map initial radius, nodes")
-    som_sigma_min: float = _spec(0.3, 0.05, 64.0, "OS-Map final radius, nodes")
-    som_alpha_max: float = _spec(0.5, 0.0, 1.0, "OS-Map initial learning rate")
-    som_alpha_min: float = _spec(0.05, 0.0, 1.0, "OS-Map final learning rate")
-    som_anisotropy: float = _spec(0.25, 0.0, 1.0, "kernel weight across / along each component")
-    som_range: float = _spec(2.0, 0.0, 100.0, "range kernel tau = som_range * sigma + 1 (0: off)")
+    width: int = option(256, 8, 16384, "output width")
+    height: int = option(256, 8, 16384, "output height")
+    seed: int = option(0, 0, 2**63 - 1, "random seed")
+    scale: float = option(1.0, 0.25, 8.0, "feature size relative to the exemplar")
+    orientation: float = option(0.0, -360.0, 360.0, "rotation of the texture, degrees")
+    anisotropy: float = option(1.0, 0.25, 4.0, "stretch along the orientation direction")
+    tileable: bool = option(False, help="output wraps around seamlessly")
+    method: str = option("osmap", help="osmap (default pipeline) or paper (the published "
+                         "OS-Map)", choices=METHODS)
+    quality: str = option("default", help="fast, default or high", choices=QUALITIES)
+    # --- tunables (preset keys and tuning flags) ---
+    levels: int = option(0, 0, 8, "pyramid levels (0: from the exemplar size)", tunable=True)
+    patch_radius: int = option(2, 1, 4, "matching window half-size, in feature vectors",
+                               tunable=True)
+    sweeps: int = option(6, 0, 20, "coherence sweeps per pyramid level", tunable=True)
+    coarse_sweeps: int = option(8, 0, 40, "coherence sweeps at the coarsest level", tunable=True)
+    occupancy: float = option(0.5, 0.0, 10.0, "penalty on over-used exemplar regions",
+                              tunable=True)
+    seam: float = option(1.0, 0.0, 10.0, "penalty on positions that break their neighbours' "
+                         "copy", tunable=True)
+    max_copy: float = option(56.0, 0.0, 4096.0, "copy regions wider than this, in output "
+                             "pixels, are broken up (0: off)", tunable=True)
+    align: int = option(4, 0, 8, "copies move whole by up to this many pixels to match at their "
+                        "borders (coarsest level; halved per finer level; 0: off)", tunable=True)
+    blend: int = option(2, 0, 8, "seam blending radius when rendering, pixels (0: hard copies)",
+                        tunable=True)
+    knn: int = option(4, 0, 16, "similar-position candidates per pixel (k-coherence)",
+                      tunable=True)
+    random_candidates: int = option(4, 0, 16, "PatchMatch random-search candidates per pixel",
+                                    tunable=True)
+    feature_dims: int = option(16, 1, 32, "appearance-space (PCA) dimensions", tunable=True)
+    window_scale: float = option(1.0, 0.1, 4.0, "OS-Map winner-search window / exemplar extent",
+                                 tunable=True)
+    som_steps_per_node: float = option(20.0, 0.0, 1000.0, "OS-Map training steps per map node",
+                                       tunable=True)
+    som_sigma_max: float = option(1.5, 0.1, 256.0, "OS-Map initial neighbourhood radius, in "
+                                  "nodes", tunable=True)
+    som_sigma_min: float = option(0.3, 0.05, 64.0, "OS-Map final neighbourhood radius, in nodes",
+                                  tunable=True)
+    som_alpha_max: float = option(0.5, 0.0, 1.0, "OS-Map initial learning rate", tunable=True)
+    som_alpha_min: float = option(0.05, 0.0, 1.0, "OS-Map final learning rate", tunable=True)
+    som_anisotropy: float = option(0.25, 0.0, 1.0, "OS-Map kernel weight across / along each "
+                                   "component", tunable=True)
+    som_range: float = option(2.0, 0.0, 100.0, "OS-Map range kernel: tau = som_range * sigma + 1 "
+                              "(0: off)", tunable=True)
 
     @classmethod
-    def tunables(cls) -> dict[str, dataclasses.Field]:
-        """The fields a preset may set."""
-        names = [f.name for f in dataclasses.fields(cls)]
-        start = names.index("levels")
-        return {f.name: f for f in dataclasses.fields(cls)[start:]}
+    def tunables(cls) -> dict:
+        """The fields a preset may set: {name: OptionSpec}."""
+        return declare.tunables(cls)
 
     def replace(self, **changes) -> SynthOptions:
         """A copy with some fields changed (not yet validated)."""
@@ -87,20 +83,7 @@ class SynthOptions:
 
     def validated(self) -> SynthOptions:
         """These options checked field by field; raises OsmapError on the first bad value."""
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            option = "--" + f.name.replace("_", "-")
-            if isinstance(f.default, bool):
-                if not isinstance(value, (bool, np.bool_)):
-                    raise OsmapError(f"{option}: expected true or false, got {value!r}")
-                continue
-            if isinstance(f.default, str):
-                continue
-            check_number(option, value, f)
-        if self.method not in METHODS:
-            raise OsmapError(f"--method: {self.method!r} is not one of {', '.join(METHODS)}")
-        if self.quality not in QUALITIES:
-            raise OsmapError(f"--quality: {self.quality!r} is not one of {', '.join(QUALITIES)}")
+        declare.validate(self)
         if self.som_sigma_min > self.som_sigma_max:
             raise OsmapError(f"som_sigma_min {self.som_sigma_min} exceeds som_sigma_max "
                              f"{self.som_sigma_max}")
@@ -120,12 +103,14 @@ class SynthOptions:
                                 knn=self.knn + 2)
         return self
 
-    def jacobian(self) -> np.ndarray:
+    def jacobian(self):
         """J (2x2, row/col order): exemplar offset per output pixel offset.
 
         The output shows the exemplar rotated counter-clockwise by `orientation` degrees,
         magnified by `scale`, and stretched by `anisotropy` along the rotated exemplar x axis.
         """
+        import numpy as np
+
         theta = math.radians(self.orientation)
         c, s = math.cos(theta), math.sin(theta)
         # output (x, y-down) = scale * rot * diag(anisotropy, 1) * exemplar (x, y-down);

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import json
-import os
 
 import click
 
+from osmap_cli.commands.common import CONTEXT_SETTINGS
 from osmap_cli.errors import OsmapError
+
+__all__ = ["info_command"]
 
 INFO_EPILOG = """\b
 Examples:
@@ -21,7 +23,7 @@ Examples:
 _ORDER = ("software", "command", "role", "exemplar", "exemplar_size", "preset", "seed", "args")
 
 
-@click.command("info", epilog=INFO_EPILOG,
+@click.command("info", epilog=INFO_EPILOG, context_settings=CONTEXT_SETTINGS,
                short_help="Print the provenance stored in an osmap output.")
 @click.argument("path", type=click.Path(path_type=str), metavar="FILE")
 @click.option("--json", "as_json", is_flag=True,
@@ -38,7 +40,7 @@ def info_command(path: str, as_json: bool, command_only: bool) -> None:
     names the input files as they were named (no folders): run it where they
     are. A file without osmap metadata is an error (exit 1).
     """
-    from osmap_cli.provenance import reproduce_command
+    from osmap_cli.provenance import read_provenance, reproduce_command
 
     meta = read_provenance(path)
     if not meta:
@@ -70,24 +72,3 @@ def _is_json(text: str) -> bool:
     except ValueError:
         return False
     return True
-
-
-def read_provenance(path: str) -> dict[str, str]:
-    """The osmap key/value pairs stored in an image or a NRRD file."""
-    if os.path.isdir(path):
-        raise OsmapError(f"{path}: is a directory (give one slice file)")
-    if not os.path.isfile(path):
-        raise OsmapError(f"{path}: no such file")
-    with open(path, "rb") as handle:
-        if handle.read(4) == b"NRRD":
-            from osmap_cli.solid.volumeio import read_nrrd_header
-
-            handle.seek(0)
-            return read_nrrd_header(handle, path)[1]
-    if path.lower().endswith(".npy"):
-        raise OsmapError(f"{path}: .npy files cannot store metadata (no provenance)")
-    from osmap_cli.imageio import read_metadata
-
-    return read_metadata(path)
-
-

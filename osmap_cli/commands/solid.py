@@ -1,19 +1,37 @@
 """`osmap solid`: a solid (3D) texture whose slices along x, y and z look like the exemplar.
 
-Only click and the standard library are imported at module level; numpy, Numba and the pipeline
-load when the command runs, so `osmap --help` stays fast.
+The command checks every option and plans every output before any work, then runs one
+osmap_cli.solid.job.SolidJob per exemplar (or per --x/--y/--z set). Only click and the standard
+library are imported at module level, so `osmap solid --help` stays fast.
 """
 
 from __future__ import annotations
 
 import os
 import re
-import sys
 
 import click
 
-from osmap_cli.batch import batch_options
-from osmap_cli.errors import OsmapError
+from osmap_cli.commands.common import (
+    CONTEXT_SETTINGS,
+    batch_options,
+    check_destination,
+    claim_output,
+    expand_inputs,
+    fill_template,
+    input_fields,
+    load_preset,
+    real_paths,
+    refusal,
+    resolve_options,
+    run_batch,
+    show_progress,
+    tuning_flags,
+)
+from osmap_cli.solid.job import SolidJob, default_name
+from osmap_cli.solid.options import MAX_SIDE, SolidOptions
+
+__all__ = ["solid_command"]
 
 FORMAT_CHOICES = ("npy", "png", "exr", "atlas", "nrrd")
 
@@ -64,9 +82,10 @@ and the index (0, 1, 2 = x, y, z exemplar) each voxel was copied from;
 osmap_cli.solid.render_volume(uv, maps) re-renders it on aligned maps.
 
 \b
-Presets (--preset): built-in "default", "structured", "fast", "smooth", or a TOML
-file with a [solid] table of tunables (osmap solid does not read the
-[synth] presets). --quality fast|high scales the search on top.
+Presets (--preset): a built-in name ('osmap presets --solid' lists them), or
+a TOML file with a [solid] table of tunables (osmap solid does not read the
+[synth] presets). Tuning flags (--iterations, --seam, ...) override the
+preset; --quality fast|high scales the search on top.
 Memory: the working set is estimated first; a size that does not fit in
 the available memory (or in OSMAP_MEMORY_LIMIT, e.g. 2G) is refused.
 Same inputs, options and seed give the same bytes with any thread count.
@@ -103,8 +122,6 @@ class VolumeSize(click.ParamType):
             self.fail(f"{value!r} is not N or XxYxZ (examples: 128, 128x64x32)", param, ctx)
         digits = [int(d) for d in match.groups()]
         x, y, z = digits if len(digits) == 3 else digits * 3
-        from osmap_cli.solid.options import MAX_SIDE
-
         if min(x, y, z) < 8 or max(x, y, z) > MAX_SIDE:
             self.fail(f"{value!r}: every side must be between 8 and {MAX_SIDE}", param, ctx)
         return (x, y, z)
@@ -112,8 +129,7 @@ class VolumeSize(click.ParamType):
 
 @click.command("solid", help=HELP, epilog=EPILOG,
                short_help="Synthesize a solid (3D) texture.",
-               context_settings={"help_option_names": ["-h", "--help"],
-                                 "max_content_width": 100})
+               context_settings=CONTEXT_SETTINGS)
 @click.argument("exemplars", nargs=-1, type=click.Path(path_type=str), metavar="[EXEMPLAR...]")
 @click.option("-o", "--output", "output", default=None, type=click.Path(path_type=str),
               metavar="OUT", help="Output volume (one exemplar): .npy, .nrrd, .png (atlas) or a "
@@ -130,8 +146,8 @@ class VolumeSize(click.ParamType):
 @click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True,
               help="Random seed; the same seed gives the same volume.")
 @click.option("--preset", default="default", show_default=True, metavar="NAME|FILE.toml",
-              help="Solid preset: default, structured, fast, smooth, or a TOML file with "
-                   "[solid].")
+              help="Solid preset: a built-in name (see 'osmap presets --solid') or a TOML file "
+                   "with [solid].")
 @click.option("--quality", type=click.Choice(("fast", "default", "high")), default="default",
               show_default=True, help="Speed / quality trade-off on top of the preset.")
 @click.option("--tileable", is_flag=True, help="The volume wraps around in x, y and z.")
@@ -153,24 +169,15 @@ class VolumeSize(click.ParamType):
               help="Also write float32 (Z, Y, X, 3): exemplar u (column), v (row), index. "
               "With --out-dir: a name template in DIR (e.g. '{stem}_uv.npy').")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@tuning_flags(SolidOptions)
 def solid_command(exemplars, output, out_dir, name_template, jobs, fail_fast, json_lines,
                   overwrite, size, seed, preset, quality, tileable, ex_x, ex_y, ex_z, fmt,
-                  nrrd_encoding, preview, uv_out, quiet):
-    from osmap_cli.solid.options import SolidOptions, load_solid_preset
-
-    try:
-        loaded = load_solid_preset(preset)
-    except OsmapError as exc:
-        if preset.lower().endswith(".toml") or os.sep in preset:
-            raise
-        raise click.BadParameter(str(exc).removeprefix("--preset: "),
-                                 param_hint="'--preset'") from None
+                  nrrd_encoding, preview, uv_out, quiet, **tuning):
+    loaded = load_preset(preset, "solid")
     x, y, z = size
-    options = SolidOptions().replace(**loaded.values).replace(
-        width=x, height=y, depth=z, seed=seed, quality=quality, tileable=tileable).validated()
-
-    from osmap_cli.batch import expand_inputs, run_jobs
-    from osmap_cli.solid.jobs import SolidJob
+    options = resolve_options(SolidOptions, loaded.values,
+                              {"width": x, "height": y, "depth": z, "seed": seed,
+                               "quality": quality, "tileable": tileable}, tuning)
 
     axis_files = [ex_x, ex_y, ex_z]
     if any(f is not None for f in axis_files):
@@ -187,29 +194,21 @@ def solid_command(exemplars, output, out_dir, name_template, jobs, fail_fast, js
 
     plans = _plan_outputs(sets, output, out_dir, name_template, fmt, preview, uv_out, overwrite,
                           options, loaded.name)
-    show_bar = not quiet and jobs == 1 and sys.stderr.isatty()
-    from osmap_cli.batch import real_paths, refusal
-
     inputs = real_paths(f for _, files in sets for f in files)
-
     job_list = [SolidJob(
         index=index, exemplar=base, files=files, output=main, kind=kind, options=options,
         preset=loaded.name, nrrd_encoding=nrrd_encoding, preview=prev, uv_out=uv,
         replace=output is not None or overwrite,
-        refused=refusal([main, *(p for p in (uv, prev) if p)], inputs), progress=show_bar,
+        refused=refusal([main, *(p for p in (uv, prev) if p)], inputs),
+        progress=show_progress(quiet, jobs),
     ) for index, ((base, files), (main, kind, prev, uv)) in enumerate(zip(sets, plans), 1)]
-    from osmap_cli.cli import _state
-
-    return run_jobs(job_list, workers=jobs, fail_fast=fail_fast, json_lines=json_lines,
-                    quiet=quiet, debug=_state["debug"])
+    return run_batch(job_list, jobs, fail_fast, json_lines, quiet)
 
 
 def _plan_outputs(sets, output, out_dir, name_template, fmt, preview, uv_out, overwrite,
                   options, preset_name):
     """[(volume output, format, preview, uv output)] per job, checked before any work."""
-    from osmap_cli.batch import check_destination, claim_output, fill_template
     from osmap_cli.solid import volumeio
-    from osmap_cli.solid.jobs import default_name
 
     for flag, path, ext in (("--preview", preview, ".png"), ("--uv-out", uv_out, ".npy")):
         if path is not None and os.path.splitext(path)[1].lower() != ext:
@@ -222,13 +221,12 @@ def _plan_outputs(sets, output, out_dir, name_template, fmt, preview, uv_out, ov
         if output is not None:
             main, prev, uv = output, preview, uv_out
         else:
-            stem, in_ext = os.path.splitext(os.path.basename(base))
-            fields = {"stem": stem, "name": os.path.basename(base), "ext": ext,
-                      "in_ext": in_ext.lstrip(".").lower(),
-                      "parent": os.path.basename(os.path.dirname(os.path.abspath(base))),
-                      "index": index, "width": options.width, "height": options.height,
-                      "depth": options.depth, "seed": options.seed, "preset": preset_name,
-                      "quality": options.quality}
+            common = input_fields(base, index)
+            fields = {"stem": common["stem"], "name": common["name"], "ext": ext,
+                      "in_ext": os.path.splitext(base)[1].lstrip(".").lower(),
+                      "parent": common["parent"], "index": index, "width": options.width,
+                      "height": options.height, "depth": options.depth, "seed": options.seed,
+                      "preset": preset_name, "quality": options.quality}
             main = os.path.join(out_dir, fill_template(name_template or template, fields,
                                                        "'--name'"))
             prev, uv = (os.path.join(out_dir, fill_template(p, fields, hint)) if p else None
@@ -247,35 +245,3 @@ def _plan_outputs(sets, output, out_dir, name_template, fmt, preview, uv_out, ov
                 claim_output(owners, path, base)
         plans.append((main, kind, prev, uv))
     return plans
-
-
-def stage_preview(path, voxels, metadata):
-    from osmap_cli.imageio import write_image
-    from osmap_cli.solid.preview import render_preview
-    from osmap_cli.solid.volumeio import Staged, _temp_for
-
-    temp = _temp_for(path) + ".png"
-    try:
-        write_image(temp, render_preview(voxels), 8, metadata=metadata)
-    except OsmapError as exc:
-        raise OsmapError(str(exc).replace(temp, path)) from None
-    return Staged(temp, path)
-
-
-def provenance(options, preset_name: str, exemplars) -> dict[str, str]:
-    """The metadata every output carries (the keys of `osmap synth`)."""
-    import dataclasses
-    import json
-
-    from osmap_cli import __version__
-
-    names = [os.path.basename(n) for n in exemplars]
-    return {
-        "software": f"osmap {__version__}",
-        "osmap_version": __version__,
-        "command": "solid",
-        "exemplar": names[0] if len(set(names)) == 1 else ",".join(names),
-        "preset": preset_name,
-        "seed": str(options.seed),
-        "options": json.dumps(dataclasses.asdict(options), sort_keys=True),
-    }

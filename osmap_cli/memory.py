@@ -1,5 +1,6 @@
-"""Memory guard: estimate the working set of a solid synthesis before any work, and refuse a
-size that would not fit (rather than swapping the machine to death).
+"""Memory guard: estimate the working set of a synthesis (a texture or a volume) before any
+work, and refuse a size that would not fit (rather than swapping the machine to death or ending
+in a MemoryError after minutes of work).
 
 The limit is the memory the system reports available (/proc/meminfo MemAvailable, else
 sysconf), lowered by the environment variable OSMAP_MEMORY_LIMIT (bytes, or with a K/M/G
@@ -17,7 +18,16 @@ ENV_LIMIT = "OSMAP_MEMORY_LIMIT"
 BASE_BYTES = 200 * 2**20  # interpreter, NumPy, Numba and compiled kernels
 
 
-def estimate_bytes(shape, channels: int, feature_dims: int) -> int:
+def texture_bytes(width: int, height: int, channels: int, extra_channels: int = 0) -> int:
+    """Peak working set of `osmap synth` for a WxH output (BENCHMARKS.md "Memory": about 90 to
+    125 bytes per pixel above the libraries at 512 to 1024 px, 3 channels): positions, costs,
+    features and k-NN candidates per pixel, the output and its converted copy per channel, and
+    EXTRA_CHANNELS of --with maps and --uv-out rendered beside it."""
+    pixels = int(width) * int(height)
+    return BASE_BYTES + pixels * (96 + 20 * int(channels) + 12 * int(extra_channels))
+
+
+def volume_bytes(shape, channels: int, feature_dims: int) -> int:
     """Peak working set of synthesize_solid + writing, for a (Z, Y, X) volume.
 
     Per voxel at the finest level: positions (3 axes x 2 x int32, old and new, plus int64
@@ -66,13 +76,12 @@ def human(n: float) -> str:
     return f"{n:.1f} TiB"
 
 
-def check_memory(shape, channels: int, feature_dims: int) -> int:
-    """Raise OsmapError when the estimated working set exceeds the available memory."""
-    need = estimate_bytes(shape, channels, feature_dims)
+def check_memory(need: int, what: str) -> int:
+    """Raise OsmapError when NEED bytes (for WHAT, e.g. "a 512x512 texture") exceed the
+    available memory; returns NEED."""
     have = available_bytes()
     if need > have:
-        z, y, x = shape
         limited = f" (limited by {ENV_LIMIT})" if os.environ.get(ENV_LIMIT, "").strip() else ""
-        raise OsmapError(f"a {x}x{y}x{z} volume needs about {human(need)} of memory, but only "
+        raise OsmapError(f"{what} needs about {human(need)} of memory, but only "
                          f"{human(have)} is available{limited}; use a smaller --size")
     return need

@@ -1,0 +1,309 @@
+"""`osmap synth`: a texture like the exemplar, for one exemplar (-o) or a batch (--out-dir).
+
+The command checks every option and plans every output (names, formats, collisions, inputs never
+overwritten) before any work, then runs one osmap_cli.synth.job.SynthJob per exemplar.
+"""
+
+from __future__ import annotations
+
+import os
+
+import click
+
+from osmap_cli.commands.common import (
+    CONTEXT_SETTINGS,
+    SizeType,
+    batch_options,
+    check_destination,
+    claim_output,
+    expand_inputs,
+    fill_template,
+    input_fields,
+    load_preset,
+    real_paths,
+    refusal,
+    resolve_options,
+    run_batch,
+    show_progress,
+    tuning_flags,
+)
+from osmap_cli.errors import OsmapError
+from osmap_cli.options import option_spec
+from osmap_cli.synth.options import METHODS, QUALITIES, SynthOptions
+
+__all__ = ["NAME_FIELDS", "synth_command"]
+
+_DEFAULTS = SynthOptions()
+
+SYNTH_HELP = """Synthesize a texture like EXEMPLAR and write it to OUTPUT.
+
+\b
+EXEMPLAR is a PNG, EXR, TIFF or JPEG image with any number of channels
+(alpha is synthesized with the colour). The output format follows the
+extension of OUTPUT: .png (8/16-bit), .exr (16 = half, 32 = float),
+.tif/.tiff (8/16/32-bit), .jpg/.jpeg (8-bit, no alpha). The output keeps
+the exemplar's channels and their names.
+
+\b
+Batches: give several exemplars (or "-" to read paths from stdin, one per
+line) with --out-dir DIR; each output is named by --name TEMPLATE
+(default "{stem}.{ext}"). Template fields: {stem} exemplar name without
+extension, {name} with extension, {ext} its extension (no dot), {parent}
+name of its folder, {index} 1-based position in the list, {width},
+{height}, {seed}, {preset}, {quality}; Python format specs work
+({index:03d}). A failing exemplar does not stop the others: one error line
+each, a summary at the end, exit 1. In --out-dir mode an existing output
+is kept (the job is reported "skipped", not a failure) unless --overwrite;
+-o always replaces the one file it names. An output that would replace an
+input (exemplar, --with map or field) is always refused.
+
+\b
+Option precedence, lowest to highest: built-in defaults, the --preset,
+tuning flags given here (--levels, --sweeps, ...); --quality then scales
+the work (fast: about half the sweeps; high: more sweeps and candidates).
+
+\b
+--uv-out writes, for every output pixel, the exemplar position it was
+copied from: a 2-channel float EXR, channel "u" = exemplar column (x) and
+"v" = exemplar row (y), in exemplar pixels, (0, 0) = centre of the
+top-left exemplar pixel. 'osmap apply' renders it on any aligned map.
+
+\b
+Control fields (docs/fields.md): --orientation-field is added to
+--orientation per pixel: a gray image (8/16-bit: 0..1 = 0..360 degrees
+counter-clockwise; float EXR/TIFF: degrees) or a vector image (R = x
+right, G = y up; 8/16-bit: 2v-1). --scale-field multiplies --scale per
+pixel: a gray image (8/16-bit: 0..1 = 0.5..2 as 2^(2v-1), mid gray = 1;
+float: the factor itself). Fields of any size are resized to the output.
+
+Same inputs, options and seed give the same output, whatever the number of
+threads (NUMBA_NUM_THREADS) or -j, byte for byte in every format. Outputs
+are written atomically: on any error nothing is written for that job.
+Every output records its provenance; 'osmap info FILE' prints it with the
+command line that writes the same bytes again.
+
+\b
+Exit codes: 0 every job written or skipped, 1 a job failed (bad input,
+unwritable output, runtime failure), 2 usage error, 130 interrupted.
+"""
+
+SYNTH_EPILOG = """\b
+Examples:
+  osmap synth samples/cells.png -o out/cells.png
+  osmap synth samples/cells.png -o out/cells_512x256.png --size 512x256 --seed 7
+  osmap synth samples/gravel.png -o out/gravel.png --preset stochastic --quality high
+  osmap synth samples/weave.png -o out/weave.png --scale 2 --orientation 30 --anisotropy 1.5
+  osmap synth samples/cells.png -o out/cells_tile.png --tileable
+  osmap synth samples/cells_rgba.png -o out/cells.exr --bit-depth 32 --uv-out out/cells_uv.exr
+  osmap synth samples/brick.png -o out/brick_paper.png --method paper --size 128
+  osmap synth samples/cells.png -o out/cells.png --preset my_preset.toml --levels 3
+  osmap synth samples/*.png --out-dir out/batch --name '{stem}_{width}x{height}.png' -j 2
+  ls samples/*.png | osmap synth - --out-dir out/batch --json --size 128 > jobs.jsonl
+  osmap synth rock.png -o out/rock.png --with normal=rock_normal.png --with rock_rough.png
+  osmap synth samples/weave.png -o out/weave_knot.png --orientation-field knot.png
+"""
+
+
+
+@click.command("synth", help=SYNTH_HELP, epilog=SYNTH_EPILOG, short_help="Synthesize a texture.",
+               context_settings=CONTEXT_SETTINGS)
+@click.argument("exemplars", nargs=-1, required=True, type=click.Path(path_type=str),
+                metavar="EXEMPLAR...")
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    default=None,
+    type=click.Path(path_type=str),
+    metavar="OUTPUT",
+    help="Output image (one exemplar); the extension (.png .exr .tif .tiff .jpg .jpeg) picks "
+    "the format. An existing file is replaced (atomically).",
+)
+@click.option("--out-dir", type=click.Path(path_type=str), default=None, metavar="DIR",
+              help="Write each exemplar's output into DIR (created if missing), named by "
+              "--name; an existing output is kept unless --overwrite.")
+@click.option("--name", "name_template", default=None, metavar="TEMPLATE",
+              help="Output file name in --out-dir (fields above). [default: {stem}.{ext}]")
+@batch_options
+@click.option("--size", type=SizeType(), default=str(_DEFAULTS.width), show_default=True,
+              help="Output size in pixels: WxH (e.g. 512x256) or N for NxN.")
+@click.option("--seed", type=int, default=_DEFAULTS.seed, show_default=True,
+              help="Random seed (a whole number >= 0); the same seed gives the same output.")
+@click.option(
+    "--preset",
+    default="default",
+    show_default=True,
+    metavar="NAME|FILE.toml",
+    help="Tuning preset: a built-in name (see 'osmap presets') or a TOML file.",
+)
+@click.option("--scale", type=float, default=_DEFAULTS.scale, show_default=True,
+              help="Feature size relative to the exemplar (2 = features twice as large).")
+@click.option("--orientation", type=float, default=_DEFAULTS.orientation, show_default=True,
+              metavar="DEG", help="Rotate the texture counter-clockwise by DEG degrees.")
+@click.option("--anisotropy", type=float, default=_DEFAULTS.anisotropy, show_default=True,
+              metavar="R", help="Stretch features by R along the (rotated) exemplar x axis.")
+@click.option("--orientation-field", type=click.Path(path_type=str), default=None,
+              metavar="FIELD", help="Image of the texture's direction per output pixel, added "
+              "to --orientation (encoding above).")
+@click.option("--scale-field", type=click.Path(path_type=str), default=None, metavar="FIELD",
+              help="Image of the feature size per output pixel, times --scale (encoding "
+              "above).")
+@click.option("--tileable", is_flag=True,
+              help="Make the output wrap around seamlessly (tiles without visible seams).")
+@click.option("--quality", type=click.Choice(QUALITIES), default="default", show_default=True,
+              help="Speed / quality trade-off applied on top of the preset.")
+@click.option(
+    "--method",
+    type=click.Choice(METHODS),
+    default="osmap",
+    show_default=True,
+    help="osmap: the full pipeline (OS-Map layout + coherence refinement); "
+    "paper: the published OS-Map unchanged, one node per output pixel.",
+)
+@click.option(
+    "--bit-depth",
+    type=click.Choice(["8", "16", "32"]),
+    default=None,
+    help="Bits per sample of OUTPUT: PNG 8/16, EXR 16 (half) / 32 (float), TIFF 8/16/32, "
+    "JPEG 8. [default: the format's default (EXR: 16), but 16 for PNG/TIFF when the "
+    "exemplar has 16 bits or more, 32 for TIFF from a float exemplar]",
+)
+@click.option("--with", "with_maps", multiple=True, metavar="[NAME=]MAP",
+              help="An extra map aligned with the exemplar (normal, roughness, ...), rendered "
+              "with the same positions and written as <output stem>_NAME<ext>; NAME defaults "
+              "to MAP's stem, a NAME containing 'normal' keeps unit normals. Repeatable; "
+              "{stem} {name} {dir} in MAP refer to each exemplar.")
+@click.option(
+    "--uv-out",
+    type=click.Path(path_type=str),
+    default=None,
+    metavar="FILE.exr",
+    help='Also write the exemplar position of every output pixel: float EXR, channels "u" '
+    '(column, x) and "v" (row, y) in exemplar pixels. With --out-dir: a name template '
+    "(e.g. '{stem}_uv.exr') in DIR.",
+)
+@click.option("-q", "--quiet", is_flag=True,
+              help="No progress bar, no summary line, no warnings (errors are still shown).")
+@tuning_flags(SynthOptions)
+def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str | None,
+                  name_template: str | None, jobs: int, fail_fast: bool, json_lines: bool,
+                  overwrite: bool, size: tuple[int, int], seed: int, preset: str,
+                  scale: float, orientation: float, anisotropy: float,
+                  orientation_field: str | None, scale_field: str | None, tileable: bool,
+                  quality: str, method: str, bit_depth: str | None,
+                  with_maps: tuple[str, ...], uv_out: str | None, quiet: bool,
+                  **tuning) -> int:
+    # 1. preset and options (no image work yet)
+    loaded = load_preset(preset, "synth")
+    _check_size(size)
+    options = resolve_options(
+        SynthOptions, loaded.values,
+        {"width": size[0], "height": size[1], "seed": seed, "scale": scale,
+         "orientation": orientation, "anisotropy": anisotropy, "tileable": tileable,
+         "quality": quality, "method": method},
+        tuning,
+    )
+    if (orientation_field or scale_field) and method != "osmap":
+        raise click.UsageError("--orientation-field and --scale-field need --method osmap")
+
+    # 2. the inputs and where their outputs go
+    from osmap_cli.materials import parse_with
+
+    inputs = expand_inputs(exemplars)
+    withs = []
+    for spec in with_maps:
+        try:
+            withs.append(parse_with(spec))
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="'--with'") from None
+    if len({w.name for w in withs}) != len(withs):
+        raise click.BadParameter("two maps with the same NAME", param_hint="'--with'")
+
+    from osmap_cli.presets import is_preset_path
+    from osmap_cli.synth.job import SynthJob
+
+    preset_name = os.path.basename(preset) if is_preset_path(preset) else preset
+    preset_values = None if is_preset_path(preset) else dict(loaded.values)
+    plans = _plan_outputs(inputs, output, out_dir, name_template, uv_out, withs, options,
+                          preset_name, bit_depth, overwrite)
+    input_paths = real_paths([*inputs, *(spec.path for _, _, ws, _ in plans for spec, _ in ws),
+                              orientation_field, scale_field])
+    job_list = []
+    for index, (exemplar, main, maps, uv) in enumerate(plans, 1):
+        refused = refusal([main, *(o for _, o in maps), *([uv] if uv else [])], input_paths)
+        job_list.append(SynthJob(
+            index=index, exemplar=exemplar, output=main, options=options, preset=preset_name,
+            preset_values=preset_values, bit_depth=bit_depth, uv_out=uv,
+            withs=tuple(maps),
+            orientation_field=orientation_field, scale_field=scale_field,
+            replace=output is not None or overwrite, refused=refused,
+            progress=show_progress(quiet, jobs),
+            quiet=quiet, label="osmap synth" if len(plans) == 1 else os.path.basename(exemplar),
+        ))
+    return run_batch(job_list, jobs, fail_fast, json_lines, quiet)
+
+
+def _check_size(size: tuple[int, int]) -> None:
+    width, height = size
+    for name in ("width", "height"):
+        spec = option_spec(SynthOptions, name)
+        if not spec.lo <= (width if name == "width" else height) <= spec.hi:
+            raise click.BadParameter(
+                f"{width}x{height}: width and height must be between {spec.lo} and {spec.hi}",
+                param_hint="'--size'",
+            )
+
+
+NAME_FIELDS = ("stem", "name", "ext", "parent", "index", "width", "height", "seed", "preset",
+               "quality")
+
+
+def _name_fields(exemplar: str, index: int, options, preset_name: str) -> dict:
+    fields = input_fields(exemplar, index)
+    ext = os.path.splitext(fields["name"])[1].lstrip(".").lower()
+    return {"stem": fields["stem"], "name": fields["name"], "ext": ext,
+            "parent": fields["parent"], "index": index, "width": options.width,
+            "height": options.height, "seed": options.seed, "preset": preset_name,
+            "quality": options.quality}
+
+
+def _plan_outputs(inputs, output, out_dir, name_template, uv_out, withs, options, preset_name,
+                  bit_depth, overwrite):
+    """[(exemplar, output, [(WithMap, map output)], uv output)] for every input, checked
+    before any work: output paths, formats, bit depths, collisions."""
+    from osmap_cli.imageio import output_format
+    from osmap_cli.materials import WithMap, expand_path, with_output_path
+
+    if uv_out is not None and os.path.splitext(uv_out)[1].lower() != ".exr":
+        raise click.BadParameter(f"{uv_out}: must be an .exr file", param_hint="'--uv-out'")
+    check_destination(output, out_dir, len(inputs), name_template, overwrite)
+
+    plans = []
+    owners: dict[str, str] = {}
+    for index, exemplar in enumerate(inputs, 1):
+        fields = _name_fields(exemplar, index, options, preset_name)
+        if output is not None:
+            main = output
+            uv = fill_template(uv_out, fields, "'--uv-out'") if uv_out else None
+        else:
+            main = os.path.join(out_dir, fill_template(name_template or "{stem}.{ext}", fields,
+                                                       "'--name'"))
+            uv = (os.path.join(out_dir, fill_template(uv_out, fields, "'--uv-out'"))
+                  if uv_out else None)
+        maps = [(WithMap(w.name, expand_path(w.path, exemplar)), with_output_path(main, w.name))
+                for w in withs]
+        output_format(main, None, 1)
+        if bit_depth is not None:
+            try:
+                output_format(main, int(bit_depth), 1)
+            except OsmapError as exc:
+                raise click.BadParameter(str(exc), param_hint="'--bit-depth'") from None
+        if uv is not None:
+            if os.path.abspath(uv) == os.path.abspath(main):
+                raise click.BadParameter(f"{uv}: is the same file as --output",
+                                         param_hint="'--uv-out'")
+            output_format(uv, 32, 2)
+        for path in [main, *(o for _, o in maps), *([uv] if uv else [])]:
+            claim_output(owners, path, exemplar)
+        plans.append((exemplar, main, maps, uv))
+    return plans

@@ -1,0 +1,149 @@
+"""One `osmap solid` job: an exemplar (or one --x/--y/--z set) -> its volume and extras.
+
+    read (the exemplars) -> check (formats, channels, memory) -> compute (synthesize_solid)
+    -> stage (volume, --uv-out, --preview in one transaction) -> commit
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass
+
+from osmap_cli.batch import Job
+from osmap_cli.errors import OsmapError
+
+__all__ = ["SolidJob", "default_name", "provenance"]
+
+
+def default_name(kind: str) -> tuple[str, str]:
+    """(default --name template, the {ext} field) for an output format."""
+    ext = {"npy": "npy", "nrrd": "nrrd", "atlas": "png", "png": "png", "exr": "exr"}[kind]
+    return ("{stem}" if kind in ("png", "exr") else "{stem}.{ext}"), ext
+
+
+def provenance(options, preset_name: str, exemplars) -> dict[str, str]:
+    """The metadata every output carries (the keys of `osmap synth`)."""
+    import json
+
+    from osmap_cli import __version__
+
+    names = [os.path.basename(n) for n in exemplars]
+    return {
+        "software": f"osmap {__version__}",
+        "osmap_version": __version__,
+        "command": "solid",
+        "exemplar": names[0] if len(set(names)) == 1 else ",".join(names),
+        "preset": preset_name,
+        "seed": str(options.seed),
+        "options": json.dumps(dataclasses.asdict(options), sort_keys=True),
+    }
+
+
+@dataclass(frozen=True)
+class SolidJob(Job):
+    """One solid synthesis and where its outputs go."""
+
+    index: int
+    exemplar: str  # EXEMPLAR, or the --x file when EXEMPLAR was omitted (names the job)
+    files: tuple  # the exemplar of each slice family (x, y, z); one entry: the same for all
+    output: str
+    kind: str  # volumeio format
+    options: object  # SolidOptions (validated)
+    preset: str
+    nrrd_encoding: str = "raw"
+    preview: str | None = None
+    uv_out: str | None = None
+    replace: bool = True  # False: an existing output makes the job "skipped"
+    refused: str | None = None
+    progress: bool = False
+
+    @property
+    def outputs(self) -> list[str]:
+        return [self.output] + [p for p in (self.uv_out, self.preview) if p is not None]
+
+    def describe(self) -> dict:
+        opts = self.options
+        record = {"input": self.exemplar, "outputs": self.outputs,
+                  "size": [opts.width, opts.height, opts.depth], "seed": opts.seed,
+                  "options": {"preset": self.preset, **dataclasses.asdict(opts)}}
+        if len(self.files) == 3:
+            record["axis_inputs"] = list(self.files)
+        return record
+
+    def read(self) -> list:
+        from osmap_cli.imageio import read_image
+
+        cache = {}
+        for f in self.files:
+            if f not in cache:
+                cache[f] = read_image(f)
+        return [cache[f] for f in self.files]
+
+    def check(self, images) -> None:
+        import numpy as np
+
+        from osmap_cli.memory import check_memory, volume_bytes
+        from osmap_cli.solid import volumeio
+
+        channels = {im.pixels.shape[2] for im in images}
+        if len(channels) != 1:
+            counts = ", ".join(f"{n}: {im.pixels.shape[2]}" for n, im in zip(self.files, images))
+            raise OsmapError(f"per-axis exemplars need the same number of channels ({counts})")
+        for name, im in zip(self.files, images):
+            if min(im.pixels.shape[:2]) < 8:
+                raise OsmapError(f"{name}: exemplar is smaller than 8x8 pixels")
+            if not np.all(np.isfinite(im.pixels)):
+                raise OsmapError(f"{name}: the exemplar has NaN or infinite pixel values")
+        volumeio.check_target(self.output, self.kind)
+        count = images[0].pixels.shape[2]
+        if self.kind in ("png", "atlas") and count > 4:
+            raise OsmapError(f"{self.output}: PNG stores at most 4 channels, the exemplar has "
+                             f"{count}; use --format exr, npy or nrrd")
+        if self.kind == "atlas":
+            volumeio.atlas_grid(self.output, self.options.depth)
+        for path in (self.preview, self.uv_out):
+            if path is not None:
+                volumeio.check_target(path, "npy")
+        z, y, x = self.options.shape
+        check_memory(volume_bytes(self.options.shape, count, self.options.feature_dims),
+                     f"a {x}x{y}x{z} volume")
+
+    def compute(self, images):
+        from osmap_cli.progress import ProgressBar
+        from osmap_cli.solid.pipeline import synthesize_solid
+
+        with ProgressBar(enabled=self.progress, desc="osmap solid") as progress:
+            return synthesize_solid([im.pixels for im in images], self.options,
+                                    progress=progress)
+
+    def stage(self, outputs, images, result) -> tuple[str, list[str]]:
+        from osmap_cli.imageio import encode_image
+        from osmap_cli.solid import volumeio
+        from osmap_cli.solid.preview import render_preview
+
+        options = self.options
+        names = list(self.files) if len(self.files) == 3 else [self.files[0]]
+        metadata = provenance(options, self.preset, names)
+        depth = 16 if max(im.bit_depth for im in images) >= 16 else 8
+        write, folder = volumeio.volume_writer(
+            self.output, result.voxels, self.kind, depth=depth,
+            channel_names=images[0].channel_names, metadata=metadata,
+            encoding=self.nrrd_encoding)
+        outputs.stage(self.output, write, folder=folder)
+        if self.uv_out is not None:
+            outputs.stage(self.uv_out, lambda temp: volumeio.write_npy(temp, result.uv()))
+        if self.preview is not None:
+            outputs.stage(self.preview, lambda temp: encode_image(
+                temp, render_preview(result.voxels), 8, metadata=metadata, name=self.preview))
+
+        channels = images[0].pixels.shape[2]
+        line = (f"wrote {self.output}: {options.width}x{options.height}x{options.depth} voxels, "
+                f"{channels} channel{'s' * (channels != 1)}, {self.kind}")
+        if self.kind == "atlas":
+            cols, rows = volumeio.atlas_grid(self.output, options.depth)
+            line += f" {cols}x{rows}"
+        extras = [p for p in (self.uv_out, self.preview) if p is not None]
+        if extras:
+            line += "; also " + ", ".join(extras)
+        return line, []
