@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 from osmap_cli.errors import OsmapError
 
-__all__ = ["OptionSpec", "check_number", "check_preset_value", "flag_args", "option",
+__all__ = ["Options", "OptionSpec", "check_number", "check_preset_value", "flag_args", "option",
            "option_spec", "preset_toml", "tunables", "usage_rows", "validate"]
 
 
@@ -46,6 +46,30 @@ class OptionSpec:
     @property
     def kind(self) -> type:
         return type(self.default)
+
+
+class Options:
+    """The methods every options dataclass shares (subclass it with a frozen dataclass whose
+    fields are made with :func:`option`)."""
+
+    @classmethod
+    def tunables(cls) -> dict[str, OptionSpec]:
+        """The fields a preset may set: {name: OptionSpec}."""
+        return tunables(cls)
+
+    def replace(self, **changes):
+        """A copy with some fields changed (not yet validated)."""
+        return dataclasses.replace(self, **changes)
+
+    def validated(self):
+        """These options checked field by field, then across fields; raises OsmapError on the
+        first bad value, else returns them."""
+        validate(self)
+        self.check_relations()
+        return self
+
+    def check_relations(self) -> None:
+        """Constraints between fields (none by default)."""
 
 
 def option(default, lo=None, hi=None, help: str = "", *, choices: tuple[str, ...] = (),

@@ -11,18 +11,16 @@ a `[solid]` table of the tunables below (the built-in ones in presets/solid/).
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
-from osmap_cli import options as declare
-from osmap_cli.options import option
+from osmap_cli.options import Options, option
 
 QUALITIES = ("fast", "default", "high")
 MAX_SIDE = 1024
 
 
 @dataclass(frozen=True)
-class SolidOptions:
+class SolidOptions(Options):
     """What to synthesize and how. Sizes in voxels."""
 
     width: int = option(128, 8, MAX_SIDE, "volume size along x")
@@ -76,24 +74,10 @@ class SolidOptions:
     som_anisotropy: float = option(0.25, 0.0, 1.0, "kernel weight across / along each component",
                                    tunable=True)
 
-    @classmethod
-    def tunables(cls) -> dict:
-        """The fields a solid preset may set: {name: OptionSpec}."""
-        return declare.tunables(cls)
-
-    def replace(self, **changes) -> SolidOptions:
-        """A copy with some fields changed (not yet validated)."""
-        return dataclasses.replace(self, **changes)
-
     @property
     def shape(self) -> tuple[int, int, int]:
         """(Z, Y, X) of the volume."""
         return (self.depth, self.height, self.width)
-
-    def validated(self) -> SolidOptions:
-        """These options checked field by field; raises OsmapError on the first bad value."""
-        declare.validate(self)
-        return self
 
     def with_quality(self) -> SolidOptions:
         """The tunables adjusted for --quality (fast: less search; high: more)."""

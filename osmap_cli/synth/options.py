@@ -10,20 +10,18 @@ range. The tunable fields are the preset keys and the tuning flags (osmap_cli.op
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
-from osmap_cli import options as declare
 from osmap_cli.errors import OsmapError
-from osmap_cli.options import option
+from osmap_cli.options import Options, option
 
 METHODS = ("osmap", "paper")
 QUALITIES = ("fast", "default", "high")
 
 
 @dataclass(frozen=True)
-class SynthOptions:
+class SynthOptions(Options):
     """What to synthesize and how. Units: pixels of the output unless stated."""
 
     width: int = option(256, 8, 16384, "output width")
@@ -72,25 +70,14 @@ class SynthOptions:
     som_range: float = option(2.0, 0.0, 100.0, "OS-Map range kernel: tau = som_range * sigma + 1 "
                               "(0: off)", tunable=True)
 
-    @classmethod
-    def tunables(cls) -> dict:
-        """The fields a preset may set: {name: OptionSpec}."""
-        return declare.tunables(cls)
-
-    def replace(self, **changes) -> SynthOptions:
-        """A copy with some fields changed (not yet validated)."""
-        return dataclasses.replace(self, **changes)
-
-    def validated(self) -> SynthOptions:
-        """These options checked field by field; raises OsmapError on the first bad value."""
-        declare.validate(self)
+    def check_relations(self) -> None:
+        """The schedules run from max to min."""
         if self.som_sigma_min > self.som_sigma_max:
             raise OsmapError(f"som_sigma_min {self.som_sigma_min} exceeds som_sigma_max "
                              f"{self.som_sigma_max}")
         if self.som_alpha_min > self.som_alpha_max:
             raise OsmapError(f"som_alpha_min {self.som_alpha_min} exceeds som_alpha_max "
                              f"{self.som_alpha_max}")
-        return self
 
     def with_quality(self) -> SynthOptions:
         """The tunables adjusted for --quality (fast halves the work, high adds sweeps)."""
