@@ -312,13 +312,13 @@ def refine_line(quick: bool):
 
         from osmap_cli.imageio import read_image
         from osmap_cli.synth import SynthOptions
-        from osmap_cli.synth.appearance import appearance_features
         from osmap_cli.synth.pipeline import valid_box
         from osmap_cli.synth.refine import refine
+        from osmap_cli.texture.features import appearance_features
 
         opts = SynthOptions(width=256, height=256, seed=1).validated()
         image = read_image(str(common.SAMPLES_DIR / "brick.png")).pixels
-        feat = appearance_features(image, opts.feature_dims)
+        feat = appearance_features([image], opts.feature_dims)[0]
         jac = opts.jacobian()
         lo, hi = valid_box(image.shape[:2], jac, opts.patch_radius)
         rng = np.random.default_rng(0)

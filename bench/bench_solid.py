@@ -30,7 +30,7 @@ NAMES = ("terrazzo_granite", "marble_swirl_green", "wood_planks_horizontal",
 
 def _exemplar(name: str, side: int) -> np.ndarray:
     from osmap_cli.imageio import read_image
-    from osmap_cli.synth.pyramid import resize
+    from osmap_cli.texture.pyramid import resize
 
     image = read_image(EXEMPLARS / f"{name}.png").pixels
     return image if image.shape[0] == side else resize(image, side, side)

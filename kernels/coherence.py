@@ -16,6 +16,8 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
+from osmap_kernels.common import EIGHT_NEIGHBOURS, hash_uniform, neighbour, sample
+
 # Parameters of one refinement pass.
 #   radius    int64    neighbourhood half-size (matching window (2r+1)^2 of feature vectors)
 #   lam       float64  occupancy penalty: cost * (1 + lam * occupancy)
@@ -32,63 +34,8 @@ RefineParams = namedtuple("RefineParams",
 
 
 @njit(cache=True, inline="always")
-def _hash_uniform(seed, salt, index, j):
-    """A uniform float in [0, 1) from four integers (splitmix64 finaliser)."""
-    z = np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15)
-    z ^= np.uint64(salt) * np.uint64(0xBF58476D1CE4E5B9)
-    z ^= np.uint64(index) * np.uint64(0x94D049BB133111EB)
-    z += np.uint64(j) * np.uint64(0x2545F4914F6CDD1D)
-    z ^= z >> np.uint64(30)
-    z *= np.uint64(0xBF58476D1CE4E5B9)
-    z ^= z >> np.uint64(27)
-    z *= np.uint64(0x94D049BB133111EB)
-    z ^= z >> np.uint64(31)
-    return (z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
-
-
-@njit(cache=True, inline="always")
-def _sample(feat, y, x, out):
-    """Bilinear sample of feat (h, w, F) at (y, x) into out (F,); exact fetch at integers."""
-    h, w, nf = feat.shape
-    y0 = int(np.floor(y))
-    x0 = int(np.floor(x))
-    fy = y - y0
-    fx = x - x0
-    y0 = min(max(y0, 0), h - 1)
-    x0 = min(max(x0, 0), w - 1)
-    if fy == 0.0 and fx == 0.0:
-        for f in range(nf):
-            out[f] = feat[y0, x0, f]
-        return
-    y1 = min(y0 + 1, h - 1)
-    x1 = min(x0 + 1, w - 1)
-    w00 = (1 - fy) * (1 - fx)
-    w01 = (1 - fy) * fx
-    w10 = fy * (1 - fx)
-    w11 = fy * fx
-    for f in range(nf):
-        out[f] = (w00 * feat[y0, x0, f] + w01 * feat[y0, x1, f]
-                  + w10 * feat[y1, x0, f] + w11 * feat[y1, x1, f])
-
-
-@njit(cache=True, inline="always")
 def _clamp(v, lo, hi):
     return min(max(v, lo), hi)
-
-
-# (dy, dx) of the 8 neighbours, in scan order
-EIGHT_NEIGHBOURS = np.array([(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)],
-                            np.int64)
-
-
-@njit(cache=True, inline="always")
-def _neighbour(y, x, dy, dx, H, W, wrap):
-    """(qy, qx, inside): pixel (y + dy, x + dx) of an H x W field, wrapped when toroidal."""
-    qy = y + dy
-    qx = x + dx
-    if wrap:
-        return qy % H, qx % W, True
-    return qy, qx, 0 <= qy < H and 0 <= qx < W
 
 
 @njit(cache=True, inline="always")
@@ -103,7 +50,7 @@ def _seam_penalty(src, area, y, x, cy, cx, J, p):
     excess = 0.0
     for k in range(8):
         dy, dx = EIGHT_NEIGHBOURS[k, 0], EIGHT_NEIGHBOURS[k, 1]
-        qy, qx, inside = _neighbour(y, x, dy, dx, H, W, p.wrap)
+        qy, qx, inside = neighbour(y, x, dy, dx, H, W, p.wrap)
         if not inside:
             continue
         ey = src[qy, qx, 0] - cy - (J[0, 0] * dy + J[0, 1] * dx)
@@ -144,7 +91,7 @@ def _candidate_cost(feat, cy, cx, jac, radius, nb, nb_ok, occ, lam, best, buf):
                 continue
             sy = cy + jac[0, 0] * dy + jac[0, 1] * dx
             sx = cx + jac[1, 0] * dy + jac[1, 1] * dx
-            _sample(feat, sy, sx, buf)
+            sample(feat, sy, sx, buf)
             for f in range(nf):
                 diff = nb[n * nf + f] - buf[f]
                 total += diff * diff
@@ -180,10 +127,10 @@ def refine_pass(src, dst, feat, jac, knn, occ, area, p):
             n = 0
             for dy in range(-r, r + 1):
                 for dx in range(-r, r + 1):
-                    qy, qx, inside = _neighbour(y, x, dy, dx, H, W, p.wrap)
+                    qy, qx, inside = neighbour(y, x, dy, dx, H, W, p.wrap)
                     nb_ok[n] = inside
                     if inside:
-                        _sample(feat, src[qy, qx, 0], src[qy, qx, 1], buf)
+                        sample(feat, src[qy, qx, 0], src[qy, qx, 1], buf)
                         for f in range(nf):
                             nb[n * nf + f] = buf[f]
                     n += 1
@@ -200,7 +147,7 @@ def refine_pass(src, dst, feat, jac, knn, occ, area, p):
                 for dx in range(-1, 2):
                     if dy == 0 and dx == 0:
                         continue
-                    qy, qx, inside = _neighbour(y, x, dy, dx, H, W, p.wrap)
+                    qy, qx, inside = neighbour(y, x, dy, dx, H, W, p.wrap)
                     if not inside:
                         continue
                     cy = src[qy, qx, 0] - (J[0, 0] * dy + J[0, 1] * dx)
@@ -237,8 +184,8 @@ def refine_pass(src, dst, feat, jac, knn, occ, area, p):
             # PatchMatch random search around the best, at halving radii, plus one global draw
             radius = hmax * 0.5
             for j in range(p.n_random + 1):
-                u = _hash_uniform(p.seed, p.salt, index, 2 * j)
-                v = _hash_uniform(p.seed, p.salt, index, 2 * j + 1)
+                u = hash_uniform(p.seed, p.salt, index, 2 * j)
+                v = hash_uniform(p.seed, p.salt, index, 2 * j + 1)
                 if j == p.n_random:
                     cy = p.lo[0] + u * (p.hi[0] - p.lo[0])
                     cx = p.lo[1] + v * (p.hi[1] - p.lo[1])
@@ -307,47 +254,3 @@ def usage_counts(pos, h, w):
             ix = min(max(int(pos[y, x, 1] + 0.5), 0), w - 1)
             counts[iy, ix] += 1.0
     return counts
-
-
-@njit(cache=True, parallel=True)
-def vote_image(image, pos, jac, radius, wrap):
-    """Render with seam blending: every pixel p is the Gaussian-weighted mean of the colours its
-    neighbours q (|q - p|_inf <= radius) assign to it, image at pos[q] + J[q] (p - q) (Kwatra et al.
-    2005's voting). Inside a verbatim copy all votes agree, so copies stay exact; across a seam
-    the two sides blend over about `radius` pixels. radius 0 samples pos itself (bilinear).
-    Where all votes agree the pixel is the copied value itself, bit for bit."""
-    H, W = pos.shape[0], pos.shape[1]
-    C = image.shape[2]
-    sigma = max(0.6 * radius, 0.5)
-    side = 2 * radius + 1
-    weights = np.empty((side, side))
-    for dy in range(-radius, radius + 1):
-        for dx in range(-radius, radius + 1):
-            weights[dy + radius, dx + radius] = np.exp(-(dy * dy + dx * dx) / (2.0 * sigma * sigma))
-    out = np.empty((H, W, C), np.float32)
-    for y in prange(H):
-        buf = np.empty(C, np.float32)
-        acc = np.empty(C)
-        centre = np.empty(C, np.float32)
-        for x in range(W):
-            _sample(image, pos[y, x, 0], pos[y, x, 1], centre)
-            acc[:] = 0.0
-            total = 0.0
-            agree = True
-            for dy in range(-radius, radius + 1):
-                for dx in range(-radius, radius + 1):
-                    qy, qx, inside = _neighbour(y, x, dy, dx, H, W, wrap)
-                    if not inside:
-                        continue
-                    J = jac[qy, qx]
-                    sy = pos[qy, qx, 0] - (J[0, 0] * dy + J[0, 1] * dx)
-                    sx = pos[qy, qx, 1] - (J[1, 0] * dy + J[1, 1] * dx)
-                    weight = weights[dy + radius, dx + radius]
-                    _sample(image, sy, sx, buf)
-                    for c in range(C):
-                        acc[c] += weight * buf[c]
-                        agree = agree and buf[c] == centre[c]
-                    total += weight
-            for c in range(C):
-                out[y, x, c] = centre[c] if agree else acc[c] / total
-    return out

@@ -12,7 +12,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from osmap_kernels.coherence import EIGHT_NEIGHBOURS, _neighbour, _sample
+from osmap_kernels.common import EIGHT_NEIGHBOURS, neighbour, sample
 
 # Parameters of one alignment pass.
 #   radius    int64    matching window half-size, as in RefineParams
@@ -93,7 +93,7 @@ def _border_pixels(labels, radius, wrap):
             n_found = 0
             for dy in range(-radius, radius + 1):
                 for dx in range(-radius, radius + 1):
-                    qy, qx, inside = _neighbour(y, x, dy, dx, H, W, wrap)
+                    qy, qx, inside = neighbour(y, x, dy, dx, H, W, wrap)
                     if not inside:
                         continue
                     label = labels[qy, qx]
@@ -140,17 +140,17 @@ def _border_terms(pos, labels, group, area, feat, jac, border, region, p, terms)
         inner = labels[y, x] == region
         for dy in range(-r, r + 1):
             for dx in range(-r, r + 1):
-                qy, qx, inside = _neighbour(y, x, dy, dx, H, W, p.wrap)
+                qy, qx, inside = neighbour(y, x, dy, dx, H, W, p.wrap)
                 if not inside or (labels[qy, qx] == region) == inner:
                     continue
                 ey = pos[y, x, 0] + J[0, 0] * dy + J[0, 1] * dx
                 ex = pos[y, x, 1] + J[1, 0] * dy + J[1, 1] * dx
                 if inner:  # the window's centre moves, its outside neighbour stays
-                    _sample(feat, pos[qy, qx, 0], pos[qy, qx, 1], buf)
+                    sample(feat, pos[qy, qx, 0], pos[qy, qx, 1], buf)
                     base[n, 0] = ey
                     base[n, 1] = ex
                 else:
-                    _sample(feat, ey, ex, buf)
+                    sample(feat, ey, ex, buf)
                     base[n, 0] = pos[qy, qx, 0]
                     base[n, 1] = pos[qy, qx, 1]
                 for f in range(nf):
@@ -158,7 +158,7 @@ def _border_terms(pos, labels, group, area, feat, jac, border, region, p, terms)
                 n += 1
         for k in range(8):
             dy, dx = EIGHT_NEIGHBOURS[k, 0], EIGHT_NEIGHBOURS[k, 1]
-            qy, qx, inside = _neighbour(y, x, dy, dx, H, W, p.wrap)
+            qy, qx, inside = neighbour(y, x, dy, dx, H, W, p.wrap)
             if not inside or (labels[qy, qx] == region) == inner:
                 continue
             ey = pos[qy, qx, 0] - pos[y, x, 0] - (J[0, 0] * dy + J[0, 1] * dx)
@@ -198,7 +198,7 @@ def _shift_cost(feat, fixed, base, target, merges, sy, sx, seam, limit):
     nf = feat.shape[2]
     buf = np.empty(nf)
     for n in range(fixed.shape[0]):
-        _sample(feat, base[n, 0] + sy, base[n, 1] + sx, buf)
+        sample(feat, base[n, 0] + sy, base[n, 1] + sx, buf)
         for f in range(nf):
             diff = fixed[n, f] - buf[f]
             total += diff * diff

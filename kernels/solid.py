@@ -26,7 +26,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from osmap_kernels.coherence import _hash_uniform
+from osmap_kernels.common import hash_uniform
 
 # Parameters of a search pass.
 #   radius      int64     neighbourhood half-size
@@ -194,8 +194,8 @@ def search_pass(vol, pos, dst, cost, feats, ex_of_axis, knn, occ, p):
                                     best, by, bx = c, ky, kx
                     radius = max(hi0 - lo0, hi1 - lo1) * 0.5
                     for j in range(p.n_random + 1):
-                        u = _hash_uniform(p.seed, p.salt, index, 6 * j + 2 * a)
-                        v = _hash_uniform(p.seed, p.salt, index, 6 * j + 2 * a + 1)
+                        u = hash_uniform(p.seed, p.salt, index, 6 * j + 2 * a)
+                        v = hash_uniform(p.seed, p.salt, index, 6 * j + 2 * a + 1)
                         if j == p.n_random:
                             cy = lo0 + int(u * (hi0 - lo0 + 1))
                             cx = lo1 + int(v * (hi1 - lo1 + 1))

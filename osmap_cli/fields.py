@@ -45,7 +45,7 @@ class ControlFields:
         """The same fields at another resolution."""
         if tuple(shape) == self.shape:
             return self
-        from osmap_cli.synth.pyramid import resize
+        from osmap_cli.texture.pyramid import resize
 
         stack = np.stack([self.cos, self.sin, self.log2_scale], -1)
         out = resize(stack, int(shape[0]), int(shape[1]))
@@ -176,7 +176,7 @@ def _same_shape(cos, sin, log2_scale, shape):
     """Bring the orientation and scale maps (which may differ in size) to one size."""
     if cos.shape == log2_scale.shape:
         return cos, sin, log2_scale
-    from osmap_cli.synth.pyramid import resize
+    from osmap_cli.texture.pyramid import resize
 
     cs = resize(np.stack([cos, sin], -1), *shape)
     ls = resize(log2_scale[..., None], *shape)

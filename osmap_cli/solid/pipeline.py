@@ -15,9 +15,11 @@ import numpy as np
 
 from osmap_cli.engine import Orientation, OSMap, Schedule
 from osmap_cli.solid.options import SolidOptions
-from osmap_cli.synth.appearance import neighbourhood_vectors
-from osmap_cli.synth.pyramid import build_pyramid, half_size
-from osmap_kernels.coherence import knn_table
+from osmap_cli.texture.features import appearance_features, feature_variance
+from osmap_cli.texture.levels import level_count
+from osmap_cli.texture.occupancy import occupancy
+from osmap_cli.texture.pyramid import build_pyramid, half_size
+from osmap_cli.texture.references import similar_positions
 from osmap_kernels.solid import (
     PLANE,
     ColourParams,
@@ -51,35 +53,6 @@ class SolidResult:
         return np.stack([s[..., 2], s[..., 1], s[..., 0]], -1).astype(np.float32)
 
 
-def level_count(exemplar_shapes, out_shape, wanted: int) -> int:
-    """Pyramid levels, fewer when the exemplar or volume would drop below MIN_COARSE."""
-    levels = 1
-    smallest = min(min(s) for s in exemplar_shapes)
-    side = min(out_shape)
-    while levels < wanted and smallest // 2 >= MIN_COARSE and side // 2 >= MIN_COARSE:
-        smallest, side = smallest // 2, side // 2
-        levels += 1
-    return levels
-
-
-def joint_features(images, dims: int, radius: int = 2):
-    """PCA appearance features with one basis for all exemplars (so they compare)."""
-    vectors = [neighbourhood_vectors(np.asarray(im, np.float32), radius) for im in images]
-    n = vectors[0].shape[2]
-    flat = np.concatenate([v.reshape(-1, n) for v in vectors]).astype(np.float64)
-    mean = flat.mean(axis=0)
-    centred = flat - mean
-    cov = centred.T @ centred / max(len(flat) - 1, 1)
-    _, eigvec = np.linalg.eigh(cov)
-    basis = eigvec[:, ::-1][:, :min(dims, n)]
-    basis *= np.where(basis[np.abs(basis).argmax(axis=0), range(basis.shape[1])] < 0, -1, 1)
-    feats = [((v.reshape(-1, n) - mean) @ basis).reshape(*v.shape[:2], -1).astype(np.float32)
-             for v in vectors]
-    variance = float(np.mean(np.sum(np.concatenate([f.reshape(-1, f.shape[2]) for f in feats])
-                                    ** 2, axis=1)))
-    return feats, max(variance, 1e-12)
-
-
 def _stack(arrays, shape_hw) -> np.ndarray:
     """Arrays (h_e, w_e, ...) padded (edge) to a common (H, W, ...) and stacked."""
     out = []
@@ -88,12 +61,6 @@ def _stack(arrays, shape_hw) -> np.ndarray:
         pad += [(0, 0)] * (a.ndim - 2)
         out.append(np.pad(a, pad, mode="edge"))
     return np.ascontiguousarray(np.stack(out))
-
-
-def _knn(feat, lo, hi, k):
-    area = (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1)
-    stride = max(1, int(np.ceil(np.sqrt(area / MAX_KNN_REFERENCES))))
-    return knn_table(feat, int(lo[0]), int(hi[0]), int(lo[1]), int(hi[1]), max(k, 1), stride, 2)
 
 
 def organise(shape, ex_shapes, ex_of_axis, lo, hi, opts: SolidOptions, seed: int) -> np.ndarray:
@@ -216,18 +183,6 @@ def match_histogram(vol: np.ndarray, feats, strength: float) -> np.ndarray:
     return np.ascontiguousarray(out.reshape(vol.shape))
 
 
-def occupancy(source, ex_of_axis, n_ex, hw, radius: int = 2) -> np.ndarray:
-    """float32 (E, h, w): blurred use of each exemplar pixel, 1 where use is uniform."""
-    counts = usage_counts(source, ex_of_axis, n_ex, hw[0], hw[1]).astype(np.float64)
-    size = 2 * radius + 1
-    padded = np.pad(counts, ((0, 0), (radius, radius), (radius, radius)))
-    csum = np.pad(padded.cumsum(1).cumsum(2), ((0, 0), (1, 0), (1, 0)))
-    box = (csum[:, size:, size:] - csum[:, :-size, size:] - csum[:, size:, :-size]
-           + csum[:, :-size, :-size])
-    expected = source.shape[0] * source.shape[1] * source.shape[2] / float(n_ex * hw[0] * hw[1])
-    return np.ascontiguousarray((box / (expected * size * size)).astype(np.float32))
-
-
 def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidResult:
     """A volume like the exemplars: one float32 (h, w, C) image for every axis, or a list of
     three (x, y, z) with equal channel counts. `progress(fraction)` is called as levels finish.
@@ -240,7 +195,8 @@ def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidRe
     images = [np.ascontiguousarray(im, np.float32) for im in images]
     n_ex = len(images)
     shape = opts.shape
-    levels = level_count([im.shape[:2] for im in images], shape, opts.levels)
+    levels = level_count([im.shape[:2] for im in images], shape, opts.levels,
+                         min_size=MIN_COARSE, round_up=False)
     pyramids = [build_pyramid(im, levels) for im in images]
     shapes = [shape]
     for _ in range(levels - 1):
@@ -256,12 +212,14 @@ def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidRe
         level_images = [p[level] for p in pyramids]
         ex_shapes = [im.shape[:2] for im in level_images]
         hw = (max(s[0] for s in ex_shapes), max(s[1] for s in ex_shapes))
-        feats, variance = joint_features(level_images, opts.feature_dims, opts.feature_radius)
+        feats = appearance_features(level_images, opts.feature_dims, opts.feature_radius)
+        variance = max(feature_variance(feats, np.float32), 1e-12)
         rr = min(r, (min(min(s) for s in ex_shapes) - 1) // 2)
         lo = np.array([[rr, rr]] * n_ex, np.int64)
         hi = np.array([[s[0] - 1 - rr, s[1] - 1 - rr] for s in ex_shapes], np.int64)
         feat_stack = _stack(feats, hw)
-        knn = _stack([_knn(f, lo[e], hi[e], opts.knn) for e, f in enumerate(feats)], hw)
+        knn = _stack([similar_positions(f, lo[e], hi[e], opts.knn, MAX_KNN_REFERENCES)
+                      for e, f in enumerate(feats)], hw)
         if opts.knn == 0:
             knn = np.ascontiguousarray(knn[..., :0, :])
         vshape = shapes[level]
@@ -300,7 +258,7 @@ def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidRe
                                    coarsest and it < EXHAUSTIVE_ITERATIONS, lo, hi,
                                    opts.search_occupancy, np.uint64(opts.seed),
                                    np.uint64(level * 1000 + it), seam_unit)
-            occ = occupancy(source, ex_of_axis, n_ex, hw)
+            occ = occupancy(usage_counts(source, ex_of_axis, n_ex, *hw), source[..., 0].size)
             new_pos = np.empty_like(pos)
             cost = np.empty((3, *vshape), np.float32)
             vol = match_histogram(vol, feats, opts.histogram)

@@ -3,22 +3,19 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from osmap_cli.synth.appearance import appearance_features
 from osmap_cli.synth.options import SynthOptions
 from osmap_cli.synth.organise import organise
-from osmap_cli.synth.pyramid import build_pyramid, half_size
 from osmap_cli.synth.refine import refine, upsample
 from osmap_cli.synth.render import render, render_settings
+from osmap_cli.texture.features import appearance_features
+from osmap_cli.texture.levels import level_count
+from osmap_cli.texture.pyramid import build_pyramid, half_size
 
-MIN_LEVEL_SIZE = 8  # the coarsest exemplar level keeps at least this many pixels per side
-# Automatic levels: the OS-Map organises the coarsest level, where an exemplar of about this side
-# keeps copies small and the layout right (5 levels for a 256 px exemplar, 4 for 128 px).
-COARSEST_EXEMPLAR = 16
+MIN_LEVEL_SIZE = 8  # the coarsest exemplar and output levels keep at least this many pixels a side
 
 
 @dataclass(frozen=True)
@@ -29,22 +26,6 @@ class SynthResult:
     pixels: np.ndarray
     positions: np.ndarray
     jacobian: np.ndarray | None = None  # float32 (H, W, 2, 2) with control fields, else None
-
-
-def level_count(exemplar_shape, out_shape, wanted: int) -> int:
-    """Pyramid levels: `wanted`, or for 0 as many as halve the exemplar's shorter side to about
-    COARSEST_EXEMPLAR pixels; fewer when the exemplar or output would get too small."""
-    if wanted == 0:
-        ratio = max(min(exemplar_shape), 1) / COARSEST_EXEMPLAR
-        wanted = max(1, round(math.log2(ratio)) + 1) if ratio > 1 else 1
-    levels = 1
-    ex, out = tuple(exemplar_shape), tuple(out_shape)
-    while levels < wanted:
-        ex, out = half_size(ex), half_size(out)
-        if min(ex) < MIN_LEVEL_SIZE or min(out) < MIN_LEVEL_SIZE:
-            break
-        levels += 1
-    return levels
 
 
 def valid_box(shape, jac: np.ndarray, radius: int):
@@ -74,7 +55,7 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
         return SynthResult(render(exemplar, pos), pos)
 
     out_shape = (opts.height, opts.width)
-    levels = level_count(exemplar.shape[:2], out_shape, opts.levels)
+    levels = level_count([exemplar.shape[:2]], out_shape, opts.levels, min_size=MIN_LEVEL_SIZE)
     pyramid = build_pyramid(exemplar, levels)
     shapes = [out_shape]
     for _ in range(levels - 1):
@@ -102,7 +83,7 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
     pos = None
     for level in range(levels - 1, -1, -1):
         image = pyramid[level]
-        feat = appearance_features(image, opts.feature_dims)
+        feat = appearance_features([image], opts.feature_dims)[0]
         jac_field = jacobian_field(shapes[level])
         reach = jac if fields is None else np.abs(jac_field).max(axis=(0, 1))
         lo, hi = valid_box(image.shape[:2], reach, opts.patch_radius)

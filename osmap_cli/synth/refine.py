@@ -7,7 +7,10 @@ import math
 import numpy as np
 
 from osmap_cli.synth.options import SynthOptions
-from osmap_kernels.coherence import RefineParams, knn_table, refine_pass, usage_counts
+from osmap_cli.texture.features import feature_variance
+from osmap_cli.texture.occupancy import occupancy
+from osmap_cli.texture.references import similar_positions
+from osmap_kernels.coherence import RefineParams, refine_pass, usage_counts
 from osmap_kernels.regions import AlignParams, align_regions, copy_region_areas
 
 # Whole-copy shifts are judged on the 3x3 neighbourhoods across a copy's border: as good as the
@@ -19,42 +22,22 @@ ALIGN_RADIUS = 1
 MAX_KNN_REFERENCES = 2048
 
 
-def similar_positions(feat: np.ndarray, lo, hi, k: int) -> np.ndarray:
-    """int32 (h, w, max(k, 1), 2): for each exemplar pixel, k positions that look alike."""
-    area = (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1)
-    stride = max(1, math.ceil(math.sqrt(area / MAX_KNN_REFERENCES)))
-    return knn_table(feat, int(lo[0]), int(hi[0]), int(lo[1]), int(hi[1]), max(k, 1), stride, 2)
-
-
-def occupancy(pos: np.ndarray, exemplar_shape, radius: int = 2) -> np.ndarray:
-    """Blurred usage count of each exemplar pixel, 1 where usage is uniform."""
-    h, w = exemplar_shape
-    counts = usage_counts(pos, h, w).astype(np.float64)
-    size = 2 * radius + 1
-    padded = np.pad(counts, radius, mode="constant")
-    csum = padded.cumsum(0).cumsum(1)
-    csum = np.pad(csum, ((1, 0), (1, 0)))
-    box = (csum[size:, size:] - csum[:-size, size:] - csum[size:, :-size] + csum[:-size, :-size])
-    expected = pos.shape[0] * pos.shape[1] / float(h * w) * size * size
-    return (box / expected).astype(np.float32)
-
-
 def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, sweeps: int,
            opts: SynthOptions, *, wrap: bool, seed: int, salt: int, level_scale: int = 1,
            coarsest_scale: int = 1, progress=None) -> np.ndarray:
     """`sweeps` red-black coherence sweeps over pos (H, W, 2); returns the new field."""
-    knn = similar_positions(feat, lo, hi, opts.knn)
+    knn = similar_positions(feat, lo, hi, opts.knn, MAX_KNN_REFERENCES)
     if opts.knn == 0:
         knn = knn[:, :, :0]
     # seam penalty unit: a whole window's feature variance, shared among the 8 neighbours
-    variance = float(np.mean(np.sum(np.square(feat, dtype=np.float64), axis=2)))
+    variance = feature_variance([feat])
     window = (2 * opts.patch_radius + 1) ** 2
     seam = float(opts.seam) * variance * window / 8.0
     # max_copy is a side in finest-level pixels; this level's pixels are level_scale times larger
     max_area = (opts.max_copy / level_scale) ** 2 if opts.max_copy > 0 else np.inf
     area = np.zeros(pos.shape[:2], np.float32)
     for sweep in range(sweeps):
-        occ = occupancy(pos, feat.shape[:2])
+        occ = occupancy(usage_counts(pos, *feat.shape[:2]), pos.shape[0] * pos.shape[1])
         for parity in (0, 1):
             params = RefineParams(
                 radius=opts.patch_radius, lam=float(opts.occupancy), wrap=wrap,

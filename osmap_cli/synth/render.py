@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from osmap_kernels.coherence import vote_image
+from osmap_kernels.render import vote_image
 
 
 def render_settings(options) -> tuple[bool, int]:

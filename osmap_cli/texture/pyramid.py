@@ -1,4 +1,5 @@
-"""Exemplar pyramids: each level half the size of the one below (OpenImageIO does the filtering)."""
+"""Exemplar pyramids: each level half the size of the one below (OpenImageIO does the filtering),
+and the resize behind them (also used to fit control fields to the output)."""
 
 import numpy as np
 import OpenImageIO as oiio

@@ -1,0 +1,50 @@
+"""Render kernels: output colours from a position field, blending the copies across seams."""
+
+import numpy as np
+from numba import njit, prange
+
+from osmap_kernels.common import neighbour, sample
+
+
+@njit(cache=True, parallel=True)
+def vote_image(image, pos, jac, radius, wrap):
+    """Render with seam blending: every pixel p is the Gaussian-weighted mean of the colours its
+    neighbours q (|q - p|_inf <= radius) assign to it, image at pos[q] + J[q] (p - q) (Kwatra et al.
+    2005's voting). Inside a verbatim copy all votes agree, so copies stay exact; across a seam
+    the two sides blend over about `radius` pixels. radius 0 samples pos itself (bilinear).
+    Where all votes agree the pixel is the copied value itself, bit for bit."""
+    H, W = pos.shape[0], pos.shape[1]
+    C = image.shape[2]
+    sigma = max(0.6 * radius, 0.5)
+    side = 2 * radius + 1
+    weights = np.empty((side, side))
+    for dy in range(-radius, radius + 1):
+        for dx in range(-radius, radius + 1):
+            weights[dy + radius, dx + radius] = np.exp(-(dy * dy + dx * dx) / (2.0 * sigma * sigma))
+    out = np.empty((H, W, C), np.float32)
+    for y in prange(H):
+        buf = np.empty(C, np.float32)
+        acc = np.empty(C)
+        centre = np.empty(C, np.float32)
+        for x in range(W):
+            sample(image, pos[y, x, 0], pos[y, x, 1], centre)
+            acc[:] = 0.0
+            total = 0.0
+            agree = True
+            for dy in range(-radius, radius + 1):
+                for dx in range(-radius, radius + 1):
+                    qy, qx, inside = neighbour(y, x, dy, dx, H, W, wrap)
+                    if not inside:
+                        continue
+                    J = jac[qy, qx]
+                    sy = pos[qy, qx, 0] - (J[0, 0] * dy + J[0, 1] * dx)
+                    sx = pos[qy, qx, 1] - (J[1, 0] * dy + J[1, 1] * dx)
+                    weight = weights[dy + radius, dx + radius]
+                    sample(image, sy, sx, buf)
+                    for c in range(C):
+                        acc[c] += weight * buf[c]
+                        agree = agree and buf[c] == centre[c]
+                    total += weight
+            for c in range(C):
+                out[y, x, c] = centre[c] if agree else acc[c] / total
+    return out

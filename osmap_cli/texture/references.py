@@ -1,0 +1,23 @@
+"""Similar positions: for every exemplar pixel, the k positions of a strided reference grid
+whose appearance features are nearest (the k-coherence candidates of the search)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from osmap_kernels.coherence import knn_table
+
+# positions within this many pixels of the pixel itself are not "similar positions"
+EXCLUDE = 2
+
+
+def similar_positions(feat: np.ndarray, lo, hi, k: int, max_references: int) -> np.ndarray:
+    """int32 (h, w, max(k, 1), 2): for each pixel of feat (h, w, F), the k positions that look
+    most alike among a grid of about `max_references` positions inside the valid box [lo, hi]
+    (the grid's stride grows with the box's area)."""
+    area = (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1)
+    stride = max(1, math.ceil(math.sqrt(area / max_references)))
+    return knn_table(feat, int(lo[0]), int(hi[0]), int(lo[1]), int(hi[1]), max(k, 1), stride,
+                     EXCLUDE)
