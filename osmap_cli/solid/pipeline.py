@@ -9,6 +9,7 @@ plane and zero across it), and a source: the (axis, row, col) its colour is copi
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +36,9 @@ MIN_COARSE = 16  # the coarsest volume and exemplar level keep at least this man
 MAX_KNN_REFERENCES = 4096
 ACROSS = 1.0e4  # OS-Map kernel weight across a component's slice plane: no update there
 EXHAUSTIVE_ITERATIONS = 2  # coarsest level: exhaustive search first, then propagation
+# ... unless voxels x exemplar pixels exceed this: a thin volume (8x8x1024) cannot be made
+# coarser than its short side allows, and an exhaustive search over it took minutes
+EXHAUSTIVE_BUDGET = 2**25
 NORMAL_DIM = (2, 1, 0)  # volume dim (z, y, x order) normal to axis x, y, z
 
 
@@ -255,7 +259,9 @@ def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidRe
         seam_unit = seam * variance * (2 * rr + 1) ** 2 / 8.0
         for it in range(iterations):
             sparams = SearchParams(rr, opts.tileable, opts.random_candidates,
-                                   coarsest and it < EXHAUSTIVE_ITERATIONS, lo, hi,
+                                   coarsest and it < EXHAUSTIVE_ITERATIONS
+                                   and math.prod(vshape) * math.prod(hw) <= EXHAUSTIVE_BUDGET,
+                                   lo, hi,
                                    opts.search_occupancy, np.uint64(opts.seed),
                                    np.uint64(level * 1000 + it), seam_unit)
             occ = occupancy(usage_counts(source, ex_of_axis, n_ex, *hw), source[..., 0].size)
