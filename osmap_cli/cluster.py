@@ -208,6 +208,8 @@ def run_cluster(jobs: list, spec: ClusterSpec, fail_fast: bool, debug: bool, rep
 
     cwd = os.getcwd()
     token = uuid.uuid4().hex[:12]
+    if spec.local is not None and spec.local > len(jobs):  # no idle workers to start
+        spec = dataclasses.replace(spec, local=len(jobs))
     # the worker has no terminal: no progress bars there
     jobs = [dataclasses.replace(job, progress=False) if getattr(job, "progress", False)
             else job for job in jobs]

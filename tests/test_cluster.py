@@ -355,14 +355,16 @@ def test_local_n_starts_a_loopback_cluster_and_closes_it(run_cli, twenty, tmp_pa
     class Recording(distributed.LocalCluster):
         def __init__(self, *args, **kwargs):
             super().__init__(*args, **kwargs)
+            self.started_workers = len(self.workers)
             started.append(self)
 
     monkeypatch.setattr(distributed, "LocalCluster", Recording)
     result = run_cli("synth", *twenty[:2], "--out-dir", tmp_path / "out", *FAST,
-                     "--scheduler", "local:1", "--json")
+                     "--scheduler", "local:3", "--json")
     assert result.code == 0, result.err
     assert [r["status"] for r in _json_lines(result.out)] == ["ok", "ok"]
     (local,) = started
+    assert local.started_workers == 2  # local:3 for 2 jobs: no idle worker is started
     assert local.scheduler_address.startswith("tcp://127.0.0.1:")
     assert local.scheduler.http_server.address == "127.0.0.1"
     assert local.status.name == "closed"
@@ -370,6 +372,19 @@ def test_local_n_starts_a_loopback_cluster_and_closes_it(run_cli, twenty, tmp_pa
     for path in twenty[:2]:
         assert (tmp_path / "out" / path.name).read_bytes() == \
             (tmp_path / "serial" / path.name).read_bytes()
+
+
+@needs_distributed
+def test_an_unreachable_scheduler_is_an_error_not_a_hang(run_cli, twenty, tmp_path):
+    import dask
+
+    with dask.config.set({"distributed.comm.timeouts.connect": "2s"}):
+        # port 1 on the loopback interface: nothing listens there
+        result = run_cli("synth", *twenty[:2], "--out-dir", tmp_path / "o", *FAST,
+                         "--scheduler", "tcp://127.0.0.1:1")
+    assert result.code == 1, result.err
+    assert "cannot connect to the Dask scheduler (tcp://127.0.0.1:1)" in result.err
+    assert os.listdir(tmp_path / "o") == []
 
 
 @pytest.mark.parametrize("args, needle", [
