@@ -108,7 +108,17 @@ def _timed(run) -> tuple[float, list[dict]]:
     return time.perf_counter() - started, records
 
 
-def _warm_cluster(exemplars, work: Path) -> tuple[str, float]:
+def _import_seconds(runs: int = 3) -> float:
+    """What importing distributed adds to a process's start (median of RUNS)."""
+    def once(code: str) -> float:
+        started = time.perf_counter()
+        subprocess.run([sys.executable, "-c", code], check=True)
+        return time.perf_counter() - started
+
+    return statistics.median(once("import distributed") - once("pass") for _ in range(runs))
+
+
+def _warm_cluster(exemplars, work: Path) -> tuple[str, float, float]:
     """Per-task overhead on a running local cluster: real jobs and no-op (skipped) jobs."""
     import logging
 
@@ -151,7 +161,9 @@ def _warm_cluster(exemplars, work: Path) -> tuple[str, float]:
                      for label, ff in (("cluster", False), ("cluster, --fail-fast", True))]
         serial_wall, _ = _timed(lambda report: [report(_run_caught(j)) for j in noop])
     finally:
+        closing = time.perf_counter()
         cluster.close()
+        close_seconds = time.perf_counter() - closing
     rows = [
         [f"{JOBS} real jobs ({SIZE}x{SIZE}), 2 workers", fmt(real_wall, 1),
          fmt(real_busy / JOBS, 3), fmt((2 * real_wall - real_busy) / JOBS, 3)],
@@ -162,7 +174,7 @@ def _warm_cluster(exemplars, work: Path) -> tuple[str, float]:
     ]
     table = md_table(["batch on a running `local:2`-like cluster", "wall s", "job s (mean)",
                       "overhead s/task (worker time)"], rows)
-    return table, start_seconds
+    return table, start_seconds, close_seconds
 
 
 def run(quick: bool = False, log=_log) -> str:
@@ -178,10 +190,14 @@ def run(quick: bool = False, log=_log) -> str:
         log(f"[cluster] end to end: {rounds} round(s) of -j 2 and --scheduler local:2")
         e2e, info = _end_to_end(exemplars, work, rounds)
         log("[cluster] per-task overhead on a running cluster")
-        warm, start_seconds = _warm_cluster(exemplars, work)
+        warm, start_seconds, close_seconds = _warm_cluster(exemplars, work)
+        import_seconds = _import_seconds()
     finally:
         shutil.rmtree(work, ignore_errors=True)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    gap = (statistics.median(info["walls"]["--scheduler local:2"])
+           - statistics.median(info["walls"]["-j 2"]))
+    fixed = import_seconds + start_seconds + close_seconds
     return "\n".join([
         "## Clusters: `-j 2` against `--scheduler local:2`",
         "",
@@ -198,6 +214,14 @@ def run(quick: bool = False, log=_log) -> str:
         "",
         e2e,
         f"Outputs of the two modes byte-identical: {'yes' if info['same'] else 'NO'}.",
+        "",
+        f"`local:2` took {gap:+.1f} s against `-j 2` (medians). Its fixed costs, measured "
+        f"apart: importing distributed {import_seconds:.1f} s, starting the cluster (scheduler, "
+        f"two nannies and their worker processes) {start_seconds:.1f} s, closing it "
+        f"{close_seconds:.1f} s: {fixed:.1f} s in all, which `-j 2`'s process pool does not "
+        "pay; the rest is the per-task overhead below and the noise of a shared machine. "
+        "`local:N` is for trying the cluster path out; on a real cluster the start-up is paid "
+        "once, by the cluster, not by each batch.",
         "",
         f"Per-task overhead of the cluster path once the cluster runs (started in "
         f"{start_seconds:.1f} s, 2 workers, Numba cache warm): real jobs, and no-op tasks "
