@@ -120,19 +120,13 @@ def _import_seconds(runs: int = 3) -> float:
 
 def _warm_cluster(exemplars, work: Path) -> tuple[str, float, float]:
     """Per-task overhead on a running local cluster: real jobs and no-op (skipped) jobs."""
-    import logging
-
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     from osmap_cli.batch import _run_caught
-    from osmap_cli.cluster import LOCAL_HOST, ClusterSpec, run_cluster
+    from osmap_cli.cluster import ClusterSpec, run_cluster, start_local_cluster
 
     started = time.perf_counter()
-    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host=LOCAL_HOST,
-                           dashboard_address=None, silence_logs=logging.ERROR,
-                           scheduler_kwargs={"dashboard": False,
-                                             "dashboard_address": f"{LOCAL_HOST}:0"},
-                           env={"NUMBA_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"})
+    cluster = start_local_cluster(2)  # as --scheduler local:2 starts it
     try:
         with Client(cluster) as client:
             client.wait_for_workers(2, timeout=300)

@@ -16,7 +16,7 @@ the exit codes are those of ``-j``.
   default threading layer must not be entered by two threads at once, and the task changes
   into the client's working folder (relative paths mean what they meant here).
 - A worker that dies takes only its task with it: the scheduler runs the task again
-  elsewhere; ``local:N`` allows one such failure (``allowed_failures=1``), an existing cluster
+  elsewhere; ``local:N`` allows one such failure (LOCAL_SCHEDULER_CONFIG), an existing cluster
   its own ``distributed.scheduler.allowed-failures``. Then the job is reported failed. Tasks are
   submitted with ``retries=1`` for an exception outside the job (the job's own errors are
   records, never retried).
@@ -42,13 +42,18 @@ from dataclasses import dataclass
 
 from osmap_cli.errors import OsmapError
 
-__all__ = ["ClusterSpec", "EXTRA_HINT", "available", "parse_scheduler", "run_cluster"]
+__all__ = ["ClusterSpec", "EXTRA_HINT", "available", "parse_scheduler", "run_cluster",
+           "start_local_cluster"]
 
 EXTRA_HINT = "pip install 'osmap[cluster]'"
 LOCAL_HOST = "127.0.0.1"
 _LOCAL_RE = re.compile(r"local:(\d+)")
 # a task's answer when --fail-fast stopped the batch before its job started
 _NOT_RUN = "not run"
+# The scheduler of local:N: a task whose worker died runs once more, then fails (KilledWorker);
+# a worker holds only the task it runs (no queued ones that its death would count against).
+LOCAL_SCHEDULER_CONFIG = {"distributed.scheduler.allowed-failures": 1,
+                          "distributed.scheduler.worker-saturation": 1.0}
 
 
 @dataclass(frozen=True)
@@ -151,22 +156,11 @@ def _task(job, cwd: str, threads: int, debug: bool, stop: str | None):
 @contextlib.contextmanager
 def _client(spec: ClusterSpec):
     """A distributed Client for SPEC; a local cluster is started here and closed after."""
-    import logging
-
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     if spec.local is not None:
         try:
-            cluster = LocalCluster(
-                n_workers=spec.local, threads_per_worker=1, processes=True, host=LOCAL_HOST,
-                dashboard_address=None, worker_dashboard_address=None,
-                # no dashboard; the scheduler's HTTP routes (health) on a free loopback port
-                scheduler_kwargs={"allowed_failures": 1, "dashboard": False,
-                                  "dashboard_address": f"{LOCAL_HOST}:0"},
-                silence_logs=logging.ERROR,
-                env={"NUMBA_NUM_THREADS": str(spec.threads), "OPENBLAS_NUM_THREADS": "1",
-                     "MKL_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"},
-            )
+            cluster = start_local_cluster(spec.local, spec.threads)
         except Exception as exc:  # noqa: BLE001
             raise OsmapError(f"cannot start a local Dask cluster: {type(exc).__name__}: "
                              f"{exc}") from None
@@ -186,6 +180,27 @@ def _client(spec: ClusterSpec):
                          f"{' '.join(str(exc).split()) or type(exc).__name__}") from None
     with client:
         yield client
+
+
+def start_local_cluster(workers: int, threads: int = 1):
+    """The cluster of ``local:N``: a distributed.LocalCluster of WORKERS single-threaded worker
+    processes (NUMBA_NUM_THREADS=THREADS), everything on 127.0.0.1 and no dashboard, with
+    LOCAL_SCHEDULER_CONFIG. The caller closes it."""
+    import logging
+
+    import dask
+    from distributed import LocalCluster
+
+    with dask.config.set(LOCAL_SCHEDULER_CONFIG):
+        return LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=True, host=LOCAL_HOST,
+            dashboard_address=None, worker_dashboard_address=None,
+            # the scheduler's HTTP routes (health checks) on a free loopback port
+            scheduler_kwargs={"dashboard": False, "dashboard_address": f"{LOCAL_HOST}:0"},
+            silence_logs=logging.ERROR,
+            env={"NUMBA_NUM_THREADS": str(threads), "OPENBLAS_NUM_THREADS": "1",
+                 "MKL_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"},
+        )
 
 
 def _lost(job, exc: BaseException, started: float) -> dict:

@@ -45,23 +45,16 @@ def time_limit():
 
 @pytest.fixture(scope="module")
 def cluster(request):
-    """A LocalCluster on 127.0.0.1: 2 worker processes, 1 thread each, NUMBA_NUM_THREADS=2,
-    a task retried once after its worker died (as `--scheduler local:N` sets it up)."""
+    """The LocalCluster of `--scheduler local:2` (osmap_cli.cluster.start_local_cluster), but
+    with NUMBA_NUM_THREADS=2 in its workers (for --threads 2)."""
     pytest.importorskip("distributed", reason="dask.distributed is not installed "
                         "(pip install 'osmap[cluster]')")
-    import logging
-
-    from distributed import LocalCluster
+    from osmap_cli.cluster import start_local_cluster
 
     previous = signal.signal(signal.SIGALRM, _expire)
     signal.alarm(TEST_SECONDS)
     try:
-        local = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                             host="127.0.0.1", dashboard_address=None,
-                             scheduler_kwargs={"allowed_failures": 1, "dashboard": False,
-                                               "dashboard_address": "127.0.0.1:0"},
-                             silence_logs=logging.ERROR,
-                             env={"NUMBA_NUM_THREADS": "2", "OPENBLAS_NUM_THREADS": "1"})
+        local = start_local_cluster(2, threads=2)
     finally:
         signal.alarm(0)
         signal.signal(signal.SIGALRM, previous)
@@ -107,7 +100,13 @@ def _visible(folder: Path) -> list[str]:
 
 @needs_distributed
 def test_the_cluster_listens_on_loopback_only(cluster):
+    """And its scheduler retries a task whose worker died once, and gives a worker only the
+    task it runs (a dying worker takes no queued task with it)."""
     from distributed import Client
+
+    assert cluster.scheduler.allowed_failures == 1
+    assert cluster.scheduler.WORKER_SATURATION == 1.0
+    assert cluster.scheduler.http_server.address == "127.0.0.1"
 
     with Client(cluster.scheduler_address, timeout=60) as client:
         client.wait_for_workers(2, timeout=120)
