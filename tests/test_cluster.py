@@ -290,7 +290,35 @@ class _Killer:
             os.kill(os.getpid(), signal.SIGKILL)
 
 
-def _run_on(cluster, jobs, **kwargs) -> int:
+@dataclasses.dataclass(frozen=True)
+class _ThreadProbe:
+    """Stands in for a job: runs it and adds the Numba thread count it ran with."""
+
+    job: object
+
+    def __getattr__(self, name):
+        if name.startswith("__") or name == "job":  # while unpickling
+            raise AttributeError(name)
+        return getattr(self.job, name)
+
+    def run(self):
+        import numba
+
+        record = self.job.run()
+        record["threads"] = numba.get_num_threads()
+        return record
+
+
+@needs_distributed
+@pytest.mark.parametrize("threads", [1, 2])
+def test_each_task_runs_with_the_threads_asked_for(cluster, twenty, tmp_path, capsys, threads):
+    jobs = [_ThreadProbe(job) for job in _synth_jobs(twenty[:2], tmp_path)]
+    assert _run_on(cluster, jobs, threads=threads) == 0
+    records = _json_lines(capsys.readouterr().out)
+    assert [r["threads"] for r in records] == [threads, threads]
+
+
+def _run_on(cluster, jobs, threads: int = 1, **kwargs) -> int:
     import cloudpickle
 
     from osmap_cli.batch import run_jobs
@@ -299,7 +327,8 @@ def _run_on(cluster, jobs, **kwargs) -> int:
     cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the workers cannot import it
     try:
         return run_jobs(jobs, json_lines=True,
-                        cluster=ClusterSpec(address=cluster.scheduler_address), **kwargs)
+                        cluster=ClusterSpec(address=cluster.scheduler_address,
+                                            threads=threads), **kwargs)
     finally:
         cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
 
@@ -416,7 +445,9 @@ def test_help_and_plain_runs_do_not_import_dask(twenty, tmp_path):
     code = (
         "import sys\n"
         "from osmap_cli.cli import main\n"
+        "assert main(['--help']) == 0\n"
         "assert main(['synth', '--help']) == 0\n"
+        "assert main(['solid', '--help']) == 0\n"
         f"assert main(['synth', {str(twenty[0])!r}, '-o', {str(tmp_path / 'a.png')!r}, "
         "'--size', '32', '--preset', 'fast', '--levels', '2', '-q']) == 0\n"
         "loaded = sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed'))\n"
