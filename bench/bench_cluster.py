@@ -166,7 +166,7 @@ def _warm_cluster(exemplars, work: Path) -> tuple[str, float, float]:
         [f"{NOOP_JOBS} no-op jobs, in this process (`-j 1`)", fmt(serial_wall, 2), "–",
          fmt(serial_wall / NOOP_JOBS, 4)],
     ]
-    table = md_table(["batch on a running `local:2`-like cluster", "wall s", "job s (mean)",
+    table = md_table(["batch on a running `local:2` cluster", "wall s", "job s (mean)",
                       "overhead s/task (worker time)"], rows)
     return table, start_seconds, close_seconds
 
@@ -213,7 +213,8 @@ def run(quick: bool = False, log=_log) -> str:
         f"apart: importing distributed {import_seconds:.1f} s, starting the cluster (scheduler, "
         f"two nannies and their worker processes) {start_seconds:.1f} s, closing it "
         f"{close_seconds:.1f} s: {fixed:.1f} s in all, which `-j 2`'s process pool does not "
-        "pay; the rest is the per-task overhead below and the noise of a shared machine. "
+        "pay (the gap also holds the per-task overhead below, and the noise of a shared "
+        "machine, of either sign). "
         "`local:N` is for trying the cluster path out; on a real cluster the start-up is paid "
         "once, by the cluster, not by each batch.",
         "",

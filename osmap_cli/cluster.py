@@ -25,7 +25,8 @@ the exit codes are those of ``-j``.
   and are reported, as with ``-j``.
 
 distributed is imported only here and only when a batch uses a cluster (``pip install
-'osmap[cluster]'``); this module imports nothing but the standard library at import time.
+'osmap[cluster]'``); at import time this module needs only the standard library and
+osmap_cli.errors.
 """
 
 from __future__ import annotations
