@@ -21,7 +21,7 @@ help:
 	@echo "make test       set up $(VENV) and run the tests"
 	@echo "make bench      set up $(VENV) and run the benchmarks (writes BENCHMARKS.md)"
 	@echo "make lint       ruff check ."
-	@echo "make venv       only create $(VENV) and install osmap (editable, with dev tools)"
+	@echo "make venv       only create $(VENV) and install osmap (editable, dev tools, dask cluster)"
 	@echo "make clean      remove out/ and caches; make distclean also removes $(VENV)"
 
 venv: $(STAMP)
@@ -29,7 +29,7 @@ venv: $(STAMP)
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet "pip>=21.3"
-	$(PY) -m pip install --quiet -e ".[dev]"
+	$(PY) -m pip install --quiet -e ".[dev,cluster]"
 	@touch $@
 
 demo: venv

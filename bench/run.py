@@ -10,6 +10,8 @@ Sections:
   kernels  OS-Map kernel paths and winner search against window size (bench/bench_kernels.py)
   roofline bytes and flops per kernel against measured bandwidth and flop rate (same file)
   memory   1024x1024 end to end and peak RSS against output size (bench/bench_memory.py)
+  cluster  a 40-job batch with -j 2 against --scheduler local:2, per-task overhead of the
+           Dask path (bench/bench_cluster.py), about 5 min; needs the `cluster` extra
 
     .venv/bin/python bench/run.py [--quick] [--only synth,som,...] [--out BENCHMARKS.md]
 
@@ -30,13 +32,15 @@ from pathlib import Path
 import common
 from common import BENCH_DIR, REPO_ROOT
 
-SECTIONS = ("synth", "quality", "surface", "solid", "som", "kernels", "roofline", "memory")
+SECTIONS = ("synth", "quality", "surface", "solid", "som", "kernels", "roofline", "memory",
+            "cluster")
 MARKER = "<!-- bench-section: {} -->"
 MARKER_RE = re.compile(r"^<!-- bench-section: (\w+) -->\s*$", re.M)
 # For files written before the markers existed: the heading each section starts with.
 HEADING_PREFIX = {"synth": "## Speed", "quality": "## Quality", "surface": "## Surface",
                   "solid": "## Solid", "som": "## Classic SOM", "kernels": "## OS-Map kernels",
-                  "roofline": "## Roofline", "memory": "## Memory"}
+                  "roofline": "## Roofline", "memory": "## Memory",
+                  "cluster": "## Clusters"}
 COMMANDS = {s: f".venv/bin/python bench/run.py --only {s}" for s in SECTIONS}
 
 
@@ -119,6 +123,11 @@ def run_roofline(args, log) -> str:
     return bench_kernels.run_roofline(quick=args.quick, log=log)
 
 
+def run_cluster(args, log) -> str:
+    import bench_cluster
+    return bench_cluster.run(quick=args.quick, log=log)
+
+
 def run_memory(args, log) -> str:
     import bench_memory
     return bench_memory.run(quick=args.quick, log=log)
@@ -126,7 +135,7 @@ def run_memory(args, log) -> str:
 
 RUNNERS = {"synth": run_synth, "quality": run_quality, "surface": run_surface,
            "solid": run_solid, "som": run_som, "kernels": run_kernels,
-           "roofline": run_roofline, "memory": run_memory}
+           "roofline": run_roofline, "memory": run_memory, "cluster": run_cluster}
 
 
 def header(ran: list[str], quick: bool, durations: dict) -> str:

@@ -4,9 +4,10 @@ A job is one unit of a batch (one exemplar -> its outputs). Every job type subcl
 :class:`Job` and has the same shape, run by :meth:`Job.run`: ``read`` its inputs, ``check``
 them against the outputs it will write, ``compute``, ``stage`` every output in one output
 transaction (osmap_cli.output), which is then committed, all or nothing. :func:`run_jobs` runs a
-list of jobs, in this process (``-j 1``) or in ``-j N`` spawned worker processes, reports each
-finished job (one line, or one JSON object with ``--json``), and returns the exit code: 0 when
-no job failed, 1 otherwise. A job's bytes do not depend on how it was run.
+list of jobs, in this process (``-j 1``), in ``-j N`` spawned worker processes or as tasks on a
+Dask cluster (osmap_cli.cluster, ``--scheduler``), reports each finished job (one line, or one
+JSON object with ``--json``), and returns the exit code: 0 when no job failed, 1 otherwise.
+A job's bytes do not depend on how it was run.
 
 This module knows nothing of the command line: errors are OsmapError, output goes to
 stdout / stderr as plain lines.
@@ -180,19 +181,25 @@ class _Reporter:
 
 
 def run_jobs(jobs: list, workers: int = 1, fail_fast: bool = False,
-             json_lines: bool = False, quiet: bool = False, debug: bool = False) -> int:
+             json_lines: bool = False, quiet: bool = False, debug: bool = False,
+             cluster=None) -> int:
     """Run the jobs and report each one; returns 0 when none failed, else 1.
 
     A single job (``osmap synth X -o Y``) raises its error instead, so that it is reported
-    exactly like any other command failure.
+    exactly like any other command failure. CLUSTER (an osmap_cli.cluster.ClusterSpec) runs
+    every job, even a single one, as a task on a Dask cluster instead (``workers`` is then 1).
     """
     report = _Reporter(json_lines, quiet, debug)
     started = time.monotonic()
-    if len(jobs) == 1 and not json_lines:
+    if len(jobs) == 1 and not json_lines and cluster is None:
         report(jobs[0].run())
         return 0
     not_run = 0
-    if workers <= 1 or len(jobs) == 1:
+    if cluster is not None:
+        from osmap_cli.cluster import run_cluster
+
+        not_run = run_cluster(jobs, cluster, fail_fast, debug, report)
+    elif workers <= 1 or len(jobs) == 1:
         for position, job in enumerate(jobs):
             record = _run_caught(job, debug)
             report(record)

@@ -55,14 +55,56 @@ _BATCH_OPTIONS = (
                  "and nothing else there."),
     click.option("--overwrite", is_flag=True, help="In --out-dir mode, replace existing "
                  "outputs instead of skipping the job."),
+    click.option("--scheduler", default=None, metavar="ADDRESS|local:N", help="Run each job "
+                 "as a task on a Dask cluster: its scheduler's ADDRESS (tcp://HOST:8786), or "
+                 "local:N to start N single-threaded workers on 127.0.0.1 for this batch. The "
+                 "workers write the outputs (a file system they share, same paths). Not with "
+                 "-j. Needs pip install 'osmap[cluster]'."),
+    click.option("--scheduler-file", type=click.Path(exists=True, dir_okay=False,
+                                                     path_type=str),
+                 default=None, metavar="FILE", help="Like --scheduler, with the address read "
+                 "from FILE (as 'dask scheduler --scheduler-file FILE' writes it)."),
+    click.option("--threads", type=click.IntRange(1, 256), default=None, metavar="N",
+                 help="Numba threads for each job on a cluster worker (with --scheduler or "
+                 "--scheduler-file); the bytes do not depend on N. [default: 1]"),
 )
 
 
 def batch_options(function):
-    """Add -j/--jobs, --fail-fast, --json and --overwrite (in that order) to a command."""
+    """Add -j/--jobs, --fail-fast, --json, --overwrite, --scheduler, --scheduler-file and
+    --threads (in that order) to a command."""
     for option in reversed(_BATCH_OPTIONS):
         function = option(function)
     return function
+
+
+def cluster_spec(scheduler, scheduler_file, threads, jobs: int):
+    """The osmap_cli.cluster.ClusterSpec of --scheduler / --scheduler-file / --threads, or None
+    (no cluster); usage errors for the combinations that make no sense."""
+    if scheduler is None and scheduler_file is None:
+        if threads is not None:
+            raise click.UsageError("--threads works with --scheduler or --scheduler-file "
+                                   "only (-j N shares the cores itself)")
+        return None
+    from osmap_cli import cluster
+
+    if scheduler is not None and scheduler_file is not None:
+        raise click.UsageError("give either --scheduler or --scheduler-file, not both")
+    flag = "--scheduler" if scheduler is not None else "--scheduler-file"
+    if jobs > 1:
+        raise click.UsageError(f"{flag} runs the jobs on the cluster's workers: -j/--jobs "
+                               "is for this machine only (leave it out)")
+    address, local = None, None
+    if scheduler is not None:
+        try:
+            address, local = cluster.parse_scheduler(scheduler)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="'--scheduler'") from None
+    if not cluster.available():
+        raise click.UsageError(f"{flag} needs Dask's distributed scheduler, which is not "
+                               f"installed: {cluster.EXTRA_HINT}")
+    return cluster.ClusterSpec(address=address, scheduler_file=scheduler_file, local=local,
+                               threads=threads or 1)
 
 
 def tuning_flags(options_cls):
@@ -208,9 +250,10 @@ def refusal(outputs, input_paths: set[str]) -> str | None:
     return None
 
 
-def run_batch(jobs: list, workers: int, fail_fast: bool, json_lines: bool, quiet: bool) -> int:
-    """osmap_cli.batch.run_jobs with the group's --debug."""
+def run_batch(jobs: list, workers: int, fail_fast: bool, json_lines: bool, quiet: bool,
+              cluster=None) -> int:
+    """osmap_cli.batch.run_jobs with the group's --debug (CLUSTER: from cluster_spec)."""
     from osmap_cli.batch import run_jobs
 
     return run_jobs(jobs, workers=workers, fail_fast=fail_fast, json_lines=json_lines,
-                    quiet=quiet, debug=debug_enabled())
+                    quiet=quiet, debug=debug_enabled(), cluster=cluster)

@@ -17,6 +17,7 @@ from osmap_cli.commands.common import (
     batch_options,
     check_destination,
     claim_output,
+    cluster_spec,
     expand_inputs,
     fill_template,
     input_fields,
@@ -171,8 +172,10 @@ class VolumeSize(click.ParamType):
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @tuning_flags(SolidOptions)
 def solid_command(exemplars, output, out_dir, name_template, jobs, fail_fast, json_lines,
-                  overwrite, size, seed, preset, quality, tileable, ex_x, ex_y, ex_z, fmt,
-                  nrrd_encoding, preview, uv_out, quiet, **tuning):
+                  overwrite, scheduler, scheduler_file, threads, size, seed, preset, quality,
+                  tileable, ex_x, ex_y, ex_z, fmt, nrrd_encoding, preview, uv_out, quiet,
+                  **tuning):
+    cluster = cluster_spec(scheduler, scheduler_file, threads, jobs)
     loaded = load_preset(preset, "solid")
     x, y, z = size
     options = resolve_options(SolidOptions, loaded.values,
@@ -202,7 +205,7 @@ def solid_command(exemplars, output, out_dir, name_template, jobs, fail_fast, js
         refused=refusal([main, *(p for p in (uv, prev) if p)], inputs),
         progress=show_progress(quiet, jobs),
     ) for index, ((base, files), (main, kind, prev, uv)) in enumerate(zip(sets, plans), 1)]
-    return run_batch(job_list, jobs, fail_fast, json_lines, quiet)
+    return run_batch(job_list, jobs, fail_fast, json_lines, quiet, cluster)
 
 
 def _plan_outputs(sets, output, out_dir, name_template, fmt, preview, uv_out, overwrite,

@@ -16,6 +16,7 @@ from osmap_cli.commands.common import (
     batch_options,
     check_destination,
     claim_output,
+    cluster_spec,
     expand_inputs,
     fill_template,
     input_fields,
@@ -187,13 +188,15 @@ Examples:
 @tuning_flags(SynthOptions)
 def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str | None,
                   name_template: str | None, jobs: int, fail_fast: bool, json_lines: bool,
-                  overwrite: bool, size: tuple[int, int], seed: int, preset: str,
+                  overwrite: bool, scheduler: str | None, scheduler_file: str | None,
+                  threads: int | None, size: tuple[int, int], seed: int, preset: str,
                   scale: float, orientation: float, anisotropy: float,
                   orientation_field: str | None, scale_field: str | None, tileable: bool,
                   quality: str, method: str, bit_depth: str | None,
                   with_maps: tuple[str, ...], uv_out: str | None, quiet: bool,
                   **tuning) -> int:
     # 1. preset and options (no image work yet)
+    cluster = cluster_spec(scheduler, scheduler_file, threads, jobs)
     loaded = load_preset(preset, "synth")
     _check_size(size)
     options = resolve_options(
@@ -240,7 +243,7 @@ def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str |
             progress=show_progress(quiet, jobs),
             quiet=quiet, label="osmap synth" if len(plans) == 1 else os.path.basename(exemplar),
         ))
-    return run_batch(job_list, jobs, fail_fast, json_lines, quiet)
+    return run_batch(job_list, jobs, fail_fast, json_lines, quiet, cluster)
 
 
 def _check_size(size: tuple[int, int]) -> None:
