@@ -90,3 +90,28 @@ def run_cli(capsys):
         return CliResult(code, captured.out, captured.err)
 
     return run
+
+
+@pytest.fixture(scope="session")
+def twenty(samples, tmp_path_factory):
+    """20 small exemplars for batch tests: 32x32 crops of the shipped samples at different
+    offsets."""
+    from osmap_cli.imageio import read_image, write_image
+
+    folder = tmp_path_factory.mktemp("twenty")
+    names = ("cells.png", "brick.png", "weave.png", "grass.png", "gravel.png")
+    paths = []
+    for i in range(20):
+        source = read_image(samples / names[i % 5]).pixels
+        y, x = 8 * (i // 5), 16 * (i // 5)
+        path = folder / f"ex{i:02d}_{names[i % 5]}"
+        write_image(path, source[y:y + 32, x:x + 32], 8)
+        paths.append(path)
+    return paths
+
+
+def json_lines(text: str) -> list[dict]:
+    """The JSON objects of --json output, one per line."""
+    import json
+
+    return [json.loads(line) for line in text.splitlines()]

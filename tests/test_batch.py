@@ -4,34 +4,15 @@ no clobbering."""
 from __future__ import annotations
 
 import io
-import json
 import os
 
 import pytest
+from conftest import json_lines
 
 from osmap_cli.commands.synth import NAME_FIELDS
-from osmap_cli.imageio import read_image, write_image
+from osmap_cli.imageio import read_image
 
 FAST = ("--size", "32", "--preset", "fast", "--levels", "2")
-
-
-@pytest.fixture(scope="module")
-def twenty(samples, tmp_path_factory):
-    """20 small exemplars: 32x32 crops of the shipped samples at different offsets."""
-    folder = tmp_path_factory.mktemp("twenty")
-    names = ("cells.png", "brick.png", "weave.png", "grass.png", "gravel.png")
-    paths = []
-    for i in range(20):
-        source = read_image(samples / names[i % 5]).pixels
-        y, x = 8 * (i // 5), 16 * (i // 5)
-        path = folder / f"ex{i:02d}_{names[i % 5]}"
-        write_image(path, source[y:y + 32, x:x + 32], 8)
-        paths.append(path)
-    return paths
-
-
-def _json_lines(text: str) -> list[dict]:
-    return [json.loads(line) for line in text.splitlines()]
 
 
 def test_batch_j2_gives_the_bytes_of_separate_runs(run_cli, twenty, tmp_path):
@@ -40,7 +21,7 @@ def test_batch_j2_gives_the_bytes_of_separate_runs(run_cli, twenty, tmp_path):
     result = run_cli("synth", *twenty, "--out-dir", batch, "-j", "2", "--json", *FAST,
                      "--seed", "4")
     assert result.code == 0, result.err
-    records = _json_lines(result.out)  # stdout holds nothing but the JSON objects
+    records = json_lines(result.out)  # stdout holds nothing but the JSON objects
     assert len(records) == 20 and {r["status"] for r in records} == {"ok"}
     assert sorted(r["input"] for r in records) == sorted(map(str, twenty))
     for record in records:
@@ -67,7 +48,7 @@ def test_stdin_inputs_a_failure_does_not_stop_the_others(run_cli, twenty, tmp_pa
     out = tmp_path / "out"
     result = run_cli("synth", "-", "--out-dir", out, *FAST, "--json")
     assert result.code == 1
-    records = _json_lines(result.out)
+    records = json_lines(result.out)
     assert [r["status"] for r in records] == ["ok", "failed", "ok"]
     assert records[1]["input"] == str(bad) and "broken.png" in records[1]["error"]
     errors = [line for line in result.err_lines if line.startswith("osmap: error:")]
@@ -104,7 +85,7 @@ def test_existing_outputs_are_kept_unless_overwrite(run_cli, twenty, tmp_path):
     kept.write_bytes(b"keep me")
     result = run_cli("synth", *twenty[:2], "--out-dir", out, *FAST, "--json")
     assert result.code == 0, result.err  # skipped is not a failure: re-runs resume a batch
-    statuses = {r["input"]: r["status"] for r in _json_lines(result.out)}
+    statuses = {r["input"]: r["status"] for r in json_lines(result.out)}
     assert statuses == {str(twenty[0]): "skipped", str(twenty[1]): "ok"}
     assert kept.read_bytes() == b"keep me"
     assert any("skipped" in line and "--overwrite" in line for line in result.err_lines)

@@ -17,8 +17,9 @@ import uuid
 from pathlib import Path
 
 import pytest
+from conftest import json_lines
 
-from osmap_cli.imageio import read_image, write_image
+from osmap_cli.imageio import read_image
 from osmap_cli.output import TEMP_PREFIX
 
 FAST = ("--size", "32", "--preset", "fast", "--levels", "2")
@@ -60,25 +61,6 @@ def cluster(request):
         signal.signal(signal.SIGALRM, previous)
     request.addfinalizer(local.close)
     return local
-
-
-@pytest.fixture(scope="module")
-def twenty(samples, tmp_path_factory):
-    """20 small exemplars: 32x32 crops of the shipped samples at different offsets."""
-    folder = tmp_path_factory.mktemp("twenty")
-    names = ("cells.png", "brick.png", "weave.png", "grass.png", "gravel.png")
-    paths = []
-    for i in range(20):
-        source = read_image(samples / names[i % 5]).pixels
-        y, x = 8 * (i // 5), 16 * (i // 5)
-        path = folder / f"ex{i:02d}_{names[i % 5]}"
-        write_image(path, source[y:y + 32, x:x + 32], 8)
-        paths.append(path)
-    return paths
-
-
-def _json_lines(text: str) -> list[dict]:
-    return [json.loads(line) for line in text.splitlines()]
 
 
 def _serial(run_cli, exemplars, folder: Path, *args) -> None:
@@ -127,7 +109,7 @@ def test_twenty_exemplars_give_the_bytes_of_twenty_serial_runs(cluster, run_cli,
     result = run_cli("synth", *twenty, "--out-dir", "batch", "--json", *FAST, "--seed", "4",
                      "--scheduler", cluster.scheduler_address)
     assert result.code == 0, result.err
-    records = _json_lines(result.out)  # stdout holds nothing but the JSON objects
+    records = json_lines(result.out)  # stdout holds nothing but the JSON objects
     assert len(records) == 20 and {r["status"] for r in records} == {"ok"}
     assert sorted(r["input"] for r in records) == sorted(map(str, twenty))
     assert {r["outputs"][0] for r in records} == {f"batch/{p.name}" for p in twenty}
@@ -147,7 +129,7 @@ def test_a_broken_input_is_one_failed_job(cluster, run_cli, twenty, tmp_path):
     result = run_cli("synth", twenty[0], bad, *twenty[1:3], "--out-dir", out, *FAST, "--json",
                      "--scheduler", cluster.scheduler_address)
     assert result.code == 1
-    records = _json_lines(result.out)
+    records = json_lines(result.out)
     assert sorted(r["status"] for r in records) == ["failed", "ok", "ok", "ok"]
     failed = [r for r in records if r["status"] == "failed"]
     assert failed[0]["input"] == str(bad) and "broken.png" in failed[0]["error"]
@@ -207,7 +189,7 @@ def test_solid_batch_on_the_cluster_matches_separate_runs(cluster, run_cli, twen
     result = run_cli("solid", *twenty[:2], "--out-dir", out, *solid, "--json",
                      "--preview", "{stem}_preview.png", "--scheduler", cluster.scheduler_address)
     assert result.code == 0, result.err
-    assert [r["status"] for r in _json_lines(result.out)] == ["ok", "ok"]
+    assert [r["status"] for r in json_lines(result.out)] == ["ok", "ok"]
     for path in twenty[:2]:
         single = tmp_path / f"single_{path.stem}.npy"
         one = run_cli("solid", path, "-o", single, *solid, "--quiet")
@@ -225,7 +207,7 @@ def test_scheduler_file(cluster, run_cli, twenty, tmp_path):
     result = run_cli("synth", *twenty[:2], "--out-dir", tmp_path / "out", *FAST, "--json",
                      "--scheduler-file", path)
     assert result.code == 0, result.err
-    assert [r["status"] for r in _json_lines(result.out)] == ["ok", "ok"]
+    assert [r["status"] for r in json_lines(result.out)] == ["ok", "ok"]
 
 
 @needs_distributed
@@ -235,7 +217,7 @@ def test_fail_fast_starts_no_job_after_the_failure(cluster, run_cli, twenty, tmp
     result = run_cli("synth", missing, *twenty[:10], "--out-dir", out, *FAST, "--fail-fast",
                      "--json", "--scheduler", cluster.scheduler_address)
     assert result.code == 1
-    records = _json_lines(result.out)
+    records = json_lines(result.out)
     statuses = [r["status"] for r in records]
     assert statuses.count("failed") == 1 and set(statuses) <= {"ok", "failed"}
     summary = result.err_lines[-1]
@@ -314,7 +296,7 @@ class _ThreadProbe:
 def test_each_task_runs_with_the_threads_asked_for(cluster, twenty, tmp_path, capsys, threads):
     jobs = [_ThreadProbe(job) for job in _synth_jobs(twenty[:2], tmp_path)]
     assert _run_on(cluster, jobs, threads=threads) == 0
-    records = _json_lines(capsys.readouterr().out)
+    records = json_lines(capsys.readouterr().out)
     assert [r["threads"] for r in records] == [threads, threads]
 
 
@@ -348,7 +330,7 @@ def test_a_worker_killed_mid_task_loses_and_corrupts_nothing(cluster, twenty, tm
     jobs = _synth_jobs(twenty[:6], out)
     jobs[2] = _Killer(jobs[2], str(marker), kills)
     code = _run_on(cluster, jobs)
-    records = _json_lines(capsys.readouterr().out)
+    records = json_lines(capsys.readouterr().out)
     assert len(os.listdir(marker)) == kills  # the worker really was killed, KILLS times
     by_input = {r["input"]: r for r in records}
     assert len(records) == 6 and len(by_input) == 6
@@ -390,7 +372,7 @@ def test_local_n_starts_a_loopback_cluster_and_closes_it(run_cli, twenty, tmp_pa
     result = run_cli("synth", *twenty[:2], "--out-dir", tmp_path / "out", *FAST,
                      "--scheduler", "local:3", "--json")
     assert result.code == 0, result.err
-    assert [r["status"] for r in _json_lines(result.out)] == ["ok", "ok"]
+    assert [r["status"] for r in json_lines(result.out)] == ["ok", "ok"]
     (local,) = started
     assert local.started_workers == 2  # local:3 for 2 jobs: no idle worker is started
     assert local.scheduler_address.startswith("tcp://127.0.0.1:")
