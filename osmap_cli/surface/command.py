@@ -50,11 +50,18 @@ INPUT file: cartesian, isotropic, wrap none. --method som ignores --vary,
 the same points with the same initialisation, steps, schedule and seed.
 
 \b
-Training: every node starts at a randomly drawn point; STEPS (default 150
-per node) steps of the paper's schedule with sigma from max(grid)/4 to 0.5
-and alpha from 0.9 to 0.01; the winner is searched over the whole map.
---restarts K trains K times (seeds derived from --seed) and keeps the
-grid with the lowest topographic error (no ground truth needed).
+Training: --init auto (the default) starts a map without wrapped axes
+from the surface's unrolled (geodesic) coordinates and refines it with
+sigma 1.5 to 0.5 and alpha 0.1 to 0.01; a wrapped map (or --init random)
+starts every node at a randomly drawn point and runs the paper's schedule
+with sigma from max(grid)/4 to 0.5 and alpha from 0.9 to 0.01. STEPS
+default to 150 per node; the winner is searched over the whole map.
+Every fit is checked for folds against the points (edges across empty
+space, nodes off the surface, quads reversed against their neighbours; no
+ground truth needed); a folded grid is refitted with a derived seed up to
+--fold-retries times, and --report says so. --restarts K trains K times
+(seeds derived from --seed) and keeps a fold-free grid with the lowest
+topographic error.
 
 \b
 Outputs: OBJ with one vertex per node, quad faces (wrap faces included on
@@ -138,6 +145,12 @@ def _pair(text: str | None, option: str) -> tuple[float, float] | None:
               help="Learning-rate schedule [0.9,0.01].")
 @click.option("--restarts", type=int, default=1, show_default=True,
               help="Train K times, keep the lowest topographic error.")
+@click.option("--init", "init", type=click.Choice(["auto", "random", "geodesic"]),
+              default="auto", show_default=True,
+              help="Start: geodesic (unrolled surface; maps without wrap) or random points; "
+                   "auto: geodesic when no axis wraps.")
+@click.option("--fold-retries", type=int, default=3, show_default=True,
+              help="Refits (derived seeds) when the fold check finds a fold; 0: only report.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
 @click.option("--ply-out", default=None, metavar="FILE.ply", help="Also write a PLY.")
 @click.option("--report", is_flag=True, help="Print the quality metrics, one per line.")
@@ -148,7 +161,8 @@ def _pair(text: str | None, option: str) -> tuple[float, float] | None:
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def surface_command(input_path, output, grid, shape, turns, height, major_radius, minor_radius,
                     radius, n_points, wrap, method, vary, anisotropy, frame, axis, center, steps,
-                    sigma, alpha, restarts, seed, ply_out, report, report_json, preview, quiet):
+                    sigma, alpha, restarts, init, fold_retries, seed, ply_out, report, report_json,
+                    preview, quiet):
     try:
         run_surface(**locals())
     except OsmapError as e:
@@ -158,7 +172,8 @@ def surface_command(input_path, output, grid, shape, turns, height, major_radius
 
 def run_surface(*, input_path, output, grid, shape, turns, height, major_radius, minor_radius,
                 radius, n_points, wrap, method, vary, anisotropy, frame, axis, center, steps,
-                sigma, alpha, restarts, seed, ply_out, report, report_json, preview, quiet):
+                sigma, alpha, restarts, init, fold_retries, seed, ply_out, report, report_json,
+                preview, quiet):
     """The command's work, raising OsmapError for anything the user can fix."""
     import json
 
@@ -173,7 +188,7 @@ def run_surface(*, input_path, output, grid, shape, turns, height, major_radius,
             major_radius=major_radius, minor_radius=minor_radius, radius=radius,
             n_points=n_points, wrap=wrap, method=method, vary=vary, anisotropy=anisotropy,
             frame=frame, axis=axis, center=center, steps=steps, sigma=sigma, alpha=alpha,
-            restarts=restarts, seed=seed)
+            restarts=restarts, seed=seed, init=init, fold_retries=fold_retries)
     except SurfaceUsageError:
         raise
     except OsmapError as e:
@@ -219,7 +234,8 @@ def run_surface(*, input_path, output, grid, shape, turns, height, major_radius,
         progress = tqdm(total=total, unit="step", unit_scale=True, file=sys.stderr,
                         desc="osmap surface", leave=False)
     try:
-        result = fit.fit_best(points, cfg, restarts, progress=progress)
+        result = fit.fit_best(points, cfg, restarts, progress=progress,
+                              fold_retries=fold_retries)
     finally:
         if progress is not None:
             progress.close()
@@ -231,6 +247,7 @@ def run_surface(*, input_path, output, grid, shape, turns, height, major_radius,
 
         metrics = met.evaluate(result.grid_xyz, result.wrap, shape_obj, points, area)
         metrics["topographic_error"] = result.topographic_error
+        metrics.update(fit.fit_report(result))
     header = (f"osmap surface: {name}, grid {grid}, wrap {cfg.wrap}, method {method}, "
               f"frame {result.frame.describe()}, seed {seed}, steps {result.steps}")
     export.write_grid(output, result.grid_xyz, result.wrap, header)
@@ -250,11 +267,17 @@ def run_surface(*, input_path, output, grid, shape, turns, height, major_radius,
 
         for line in format_report(metrics):
             click.echo(line)
+    if result.folds is not None and result.folds["folded"]:
+        from osmap_cli.surface.folds import describe
+
+        click.echo(f"osmap surface: warning: the grid is still folded after {result.fits_run} "
+                   f"fit(s) ({describe(result.folds)}); try --fold-retries, --grid or --vary",
+                   err=True)
 
 
 def _options(*, input_path, grid, shape, turns, height, major_radius, minor_radius, radius,
              n_points, wrap, method, vary, anisotropy, frame, axis, center, steps, sigma, alpha,
-             restarts, seed):
+             restarts, seed, init="auto", fold_retries=3):
     """Parse and check every option: (FitConfig, built-in shape or None, map nodes)."""
     from osmap_cli.surface import fit, frames, shapes
 
@@ -281,6 +304,8 @@ def _options(*, input_path, grid, shape, turns, height, major_radius, minor_radi
         raise OsmapError(f"--steps: must be positive, got {steps}")
     if restarts < 1:
         raise OsmapError(f"--restarts: must be at least 1, got {restarts}")
+    if fold_retries < 0:
+        raise OsmapError(f"--fold-retries: must be at least 0, got {fold_retries}")
     if anisotropy is not None and not 0.0 <= anisotropy <= 1.0:
         raise OsmapError(f"--anisotropy: must be in [0, 1], got {anisotropy}")
     vary_specs = fit.parse_vary(vary if vary is not None else rec.vary)
@@ -295,7 +320,8 @@ def _options(*, input_path, grid, shape, turns, height, major_radius, minor_radi
                         axis=axis_vec, center=center_vec, vary=vary_specs,
                         anisotropy=rec.anisotropy if anisotropy is None else anisotropy,
                         steps=steps, sigma=_pair(sigma, "--sigma"),
-                        alpha=_pair(alpha, "--alpha") or fit.DEFAULT_ALPHA, seed=seed)
-    if cfg.alpha[0] > 1.0:
+                        alpha=_pair(alpha, "--alpha"), seed=seed, init=init)
+    fit.init_kind(cfg)  # --init geodesic with a wrapped map is an option error
+    if cfg.alpha is not None and cfg.alpha[0] > 1.0:
         raise OsmapError(f"--alpha: the learning rate must be at most 1, got {alpha!r}")
     return cfg, shape_obj, nodes
