@@ -95,9 +95,10 @@ def _read_obj_vertices(path) -> np.ndarray:
 
 
 def fit_variant(name: str, seed: int, workdir, n_points: int = FOLD_POINTS,
-                extra=()) -> dict:
+                extra=(), report: bool = True) -> dict:
     """Sample variant `name` with `seed`, write it to an .xyz file, run `osmap surface` on it
-    with the documented flags (and `extra`), and score the OBJ against the analytic surface."""
+    with the documented flags (and `extra`; with `report`, also --report-json to learn how many
+    fits were run), and score the OBJ against the analytic surface."""
     from surface_samplers import VARIANTS, sample_variant
 
     from osmap_cli.surface.command import surface_command
@@ -110,8 +111,8 @@ def fit_variant(name: str, seed: int, workdir, n_points: int = FOLD_POINTS,
     np.savetxt(src, pts, fmt="%.6f")
     out, js = Path(workdir) / f"{name}_{seed}.obj", Path(workdir) / f"{name}_{seed}.json"
     args = [str(src), "-o", str(out), "--seed", str(seed), "--quiet", *flags, *extra]
-    if "--report-json" in extra:
-        args = [a if a != "REPORT" else str(js) for a in args]
+    if report:
+        args += ["--report-json", str(js)]
     surface_command.main(args, standalone_mode=False)
     verts = _read_obj_vertices(out)
     shape = Roll(turns=kwargs.get("turns", 1.0)) if shape_name == "roll" else Torus()

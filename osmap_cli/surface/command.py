@@ -137,7 +137,8 @@ def _pair(text: str | None, option: str) -> tuple[float, float] | None:
 @click.option("--axis", default=None, metavar="AXIS",
               help="Frame axis: x, y, z, -z or a vector a,b,c [z].")
 @click.option("--center", default=None, metavar="X,Y,Z",
-              help="Frame centre [centroid of the points].")
+              help="Frame centre: fit (the best-fitting circle/sphere centre), centroid, "
+                   "or X,Y,Z [fit].")
 @click.option("--steps", type=int, default=None, help="Training steps [150 per node].")
 @click.option("--sigma", default=None, metavar="MAX,MIN",
               help="Neighbourhood radius schedule in nodes [max(grid)/4,0.5].")
