@@ -47,7 +47,8 @@ cylinder: cylindrical, rho=uv,phi=u,z=v, wrap u; sphere: spherical,
 r=uv,theta=v,phi=u, wrap u); any option you give overrides them. With an
 INPUT file: cartesian, isotropic, wrap none. --method som ignores --vary,
 --anisotropy, --frame, --axis and --center: it runs Kohonen's SOM in xyz on
-the same points with the same initialisation, steps, schedule and seed.
+the same points with the same steps and seed; its --init auto is the random
+start with the wide schedule.
 
 \b
 Training: --init auto (the default) starts a map without wrapped axes
