@@ -49,14 +49,22 @@ cylinder: cylindrical, rho=uv,phi=u,z=v, wrap u; sphere: spherical,
 r=uv,theta=v,phi=u, wrap u); any option you give overrides them. With an
 INPUT file: cartesian, isotropic, wrap none. --method som ignores --vary,
 --anisotropy, --frame, --axis and --center: it runs Kohonen's SOM in xyz on
-the same points with the same initialisation, steps, schedule and seed.
+the same points with the same steps and seed; its --init auto is the random
+start with the wide schedule.
 
 \b
-Training: every node starts at a randomly drawn point; STEPS (default 150
-per node) steps of the paper's schedule with sigma from max(grid)/4 to 0.5
-and alpha from 0.9 to 0.01; the winner is searched over the whole map.
---restarts K trains K times (seeds derived from --seed) and keeps the
-grid with the lowest topographic error (no ground truth needed).
+Training: --init auto (the default) starts a map without wrapped axes
+from the surface's unrolled (geodesic) coordinates and refines it with
+sigma 1.5 to 0.5 and alpha 0.1 to 0.01; a wrapped map (or --init random)
+starts every node at a randomly drawn point and runs the paper's schedule
+with sigma from max(grid)/4 to 0.5 and alpha from 0.9 to 0.01. STEPS
+default to 150 per node; the winner is searched over the whole map.
+Every fit is checked for folds against the points (edges across empty
+space, nodes off the surface, quads reversed against their neighbours; no
+ground truth needed); a folded grid is refitted with a derived seed up to
+--fold-retries times, and --report says so. --restarts K trains K times
+(seeds derived from --seed) and keeps a fold-free grid with the lowest
+topographic error.
 
 \b
 Outputs: OBJ with one vertex per node, quad faces (wrap faces included on
@@ -107,7 +115,8 @@ Examples:
 @click.option("--axis", default=None, metavar="AXIS",
               help="Frame axis: x, y, z, -z or a vector a,b,c [z].")
 @click.option("--center", default=None, metavar="X,Y,Z",
-              help="Frame centre [centroid of the points].")
+              help="Frame centre: fit (the best-fitting circle/sphere centre), centroid, "
+                   "or X,Y,Z [fit].")
 @click.option("--steps", type=int, default=None, help="Training steps [150 per node].")
 @click.option("--sigma", default=None, metavar="MAX,MIN",
               help="Neighbourhood radius schedule in nodes [max(grid)/4,0.5].")
@@ -115,6 +124,12 @@ Examples:
               help="Learning-rate schedule [0.9,0.01].")
 @click.option("--restarts", type=int, default=1, show_default=True,
               help="Train K times, keep the lowest topographic error.")
+@click.option("--init", "init", type=click.Choice(["auto", "random", "geodesic"]),
+              default="auto", show_default=True,
+              help="Start: geodesic (unrolled surface; maps without wrap) or random points; "
+                   "auto: geodesic when no axis wraps.")
+@click.option("--fold-retries", type=int, default=3, show_default=True,
+              help="Refits (derived seeds) when the fold check finds a fold; 0: only report.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
 @click.option("--ply-out", default=None, metavar="FILE.ply", help="Also write a PLY.")
 @click.option("--report", is_flag=True, help="Print the quality metrics, one per line.")
@@ -125,7 +140,8 @@ Examples:
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def surface_command(input_path, output, grid, shape, turns, height, major_radius, minor_radius,
                     radius, n_points, wrap, method, vary, anisotropy, frame, axis, center, steps,
-                    sigma, alpha, restarts, seed, ply_out, report, report_json, preview, quiet):
+                    sigma, alpha, restarts, init, fold_retries, seed, ply_out, report, report_json,
+                    preview, quiet):
     given = {k: v for k, v in locals().items() if k not in ("report", "quiet")}
     from osmap_cli.surface.job import SurfaceJob, SurfaceRequest
 
@@ -133,12 +149,14 @@ def surface_command(input_path, output, grid, shape, turns, height, major_radius
         request = SurfaceRequest(**given)
         job = SurfaceJob(request=request, report=report, progress=not quiet and
                          sys.stderr.isatty())
-        lines, _ = job.execute()
+        lines, warnings = job.execute()
     except OsmapError as e:
         code = 2 if isinstance(e, UsageError) else 1
         raise _OneLineError(" ".join(str(e).split()), code) from None
     for line in lines.splitlines():
         click.echo(line)
+    for warning in warnings:
+        click.echo(f"osmap surface: warning: {warning}", err=True)
 
 
 class _OneLineError(click.ClickException):

@@ -5,6 +5,12 @@ Two methods share everything (points, initialisation, steps, schedule, seed, map
   per-component anisotropic neighbourhood from --vary / --anisotropy;
 - "som":   Kohonen's SOM: cartesian xyz, isotropic Gaussian neighbourhood.
 Both search the winner over the whole map (scale 1: every point is represented once).
+
+Initialisation (issue 17): a map without wrapped axes starts from the surface's own unrolled
+coordinates (embed.py, a landmark Isomap) and is refined with a small radius and learning rate;
+a wrapped map, or `init="random"`, starts from randomly drawn points with the paper's wide
+schedule. After each fit, folds.py checks the grid against the points (no ground truth); a
+folded grid is refitted with a seed derived from (seed, fit number), up to `fold_retries` times.
 """
 
 from __future__ import annotations
@@ -19,6 +25,7 @@ from osmap_cli.surface.frames import Frame
 
 WRAPS = {"none": (False, False), "u": (False, True), "v": (True, False), "uv": (True, True)}
 METHODS = ("osmap", "som")
+INITS = ("auto", "random", "geodesic")
 
 
 def parse_grid(text: str) -> tuple[int, int]:
@@ -120,14 +127,21 @@ class FitConfig:
     anisotropy: float = 0.0
     steps: int | None = None                    # default: STEPS_PER_NODE * nodes
     sigma: tuple[float, float] | None = None    # (max, min); default (max(grid) / 4, SIGMA_MIN)
-    alpha: tuple[float, float] = (0.9, 0.01)
+    alpha: tuple[float, float] | None = None    # (max, min); default from the init
     seed: int = 0
     path: str = "auto"                          # engine path ("general" for benchmarks)
+    init: str = "auto"                          # auto | random | geodesic
 
 
 STEPS_PER_NODE = 150
 SIGMA_MIN = 0.5
 DEFAULT_ALPHA = (0.9, 0.01)
+# After the geodesic initialisation the map is already ordered: a refinement schedule. A wider
+# radius smooths the chain of columns off the roll's tight inner turn and back into layer-jumping
+# states (1.5 turns: sigma_max 2 or 3 failed in every seed tried, at alpha 0.1 to 0.9).
+GEODESIC_SIGMA = (1.5, 0.5)
+GEODESIC_ALPHA = (0.1, 0.01)
+FOLD_RETRIES = 3
 
 
 @dataclass
@@ -140,14 +154,38 @@ class FitResult:
     schedule: object
     topographic_error: float = float("nan")
     seed: int = 0
+    init: str = "random"      # the initialisation actually used
+    folds: dict | None = None  # folds.fold_check of the grid (None: not checked)
+    fits_run: int = 1         # fits trained to get this one (restarts and fold refits)
+    fold_history: list = field(default_factory=list)  # (seed, folded) of every fit, in order
 
 
-def default_schedule(cfg: FitConfig):
+def init_kind(cfg: FitConfig) -> str:
+    """'geodesic' or 'random': what `cfg.init` means for this config ('auto': geodesic for the
+    OS-Map on a map without wrapped axes, random otherwise)."""
+    if cfg.init not in INITS:
+        raise OsmapError(f"--init: expected auto, random or geodesic, got {cfg.init!r}")
+    if cfg.init == "geodesic" and cfg.wrap != "none":
+        raise OsmapError("--init geodesic: needs a map without wrapped axes (--wrap none); "
+                         "a closed surface has no 2D unrolling")
+    if cfg.init != "auto":
+        return cfg.init
+    return "geodesic" if cfg.method == "osmap" and cfg.wrap == "none" else "random"
+
+
+def default_schedule(cfg: FitConfig, init: str = "random"):
+    """The schedule: --sigma / --alpha when given, else the paper's wide one after a random
+    initialisation (sigma max(grid)/4 to 0.5, alpha 0.9 to 0.01) or the refinement one after a
+    geodesic initialisation (GEODESIC_SIGMA, GEODESIC_ALPHA)."""
     from osmap_cli.engine import Schedule
 
-    smax, smin = cfg.sigma if cfg.sigma is not None else (max(cfg.grid) / 4.0, SIGMA_MIN)
-    return Schedule(alpha_max=cfg.alpha[0], alpha_min=cfg.alpha[1], sigma_max=smax,
-                    sigma_min=smin)
+    geo = init == "geodesic"
+    if cfg.sigma is not None:
+        smax, smin = cfg.sigma
+    else:
+        smax, smin = GEODESIC_SIGMA if geo else (max(cfg.grid) / 4.0, SIGMA_MIN)
+    alpha = cfg.alpha if cfg.alpha is not None else (GEODESIC_ALPHA if geo else DEFAULT_ALPHA)
+    return Schedule(alpha_max=alpha[0], alpha_min=alpha[1], sigma_max=smax, sigma_min=smin)
 
 
 def build_map(cfg: FitConfig, points: np.ndarray):
@@ -170,21 +208,37 @@ def build_map(cfg: FitConfig, points: np.ndarray):
     return som, frame, frame.to_frame(points)
 
 
+def _along(cfg: FitConfig, frame: Frame) -> list[tuple[int, str]]:
+    """(component index, 'u' | 'v') for the components --vary ties to one map axis."""
+    return [(frame.component_index(s.component), s.along) for s in cfg.vary
+            if s.along in ("u", "v")]
+
+
 def fit_surface(points: np.ndarray, cfg: FitConfig, progress=None) -> FitResult:
     """Train the map on the points (n, 3) and return the node positions in xyz.
 
-    Initialisation: every node takes a randomly drawn data point (the same points, drawn with the
-    same seed, for both methods). Steps default to STEPS_PER_NODE per node; the schedule is the
-    paper's with sigma from max(grid)/4 to SIGMA_MIN and alpha from 0.9 to 0.01.
+    Initialisation (`init_kind`): geodesic, the nodes laid on the surface's unrolled coordinates
+    (embed.py; if no embedding can be made, random is used and reported), or random, every node a
+    randomly drawn data point (the same points, drawn with the same seed, for both methods).
+    Steps default to STEPS_PER_NODE per node; the schedule is `default_schedule`.
     """
+    from osmap_cli.surface.embed import geodesic_init
+
     points = np.asarray(points, np.float64)
     som, frame, data = build_map(cfg, points)
     steps = cfg.steps if cfg.steps is not None else STEPS_PER_NODE * som.size
-    schedule = default_schedule(cfg)
-    som.init_random(data, seed=cfg.seed)
+    used = "random"
+    if init_kind(cfg) == "geodesic":
+        init = geodesic_init(points, cfg.grid, frame.to_frame, _along(cfg, frame), cfg.seed)
+        if init is not None:
+            som.weights[:] = init
+            used = "geodesic"
+    if used == "random":
+        som.init_random(data, seed=cfg.seed)
+    schedule = default_schedule(cfg, used)
     som.train(data, steps, schedule=schedule, seed=cfg.seed, progress=progress)
     xyz = frame.from_frame(som.weights.astype(np.float64)).reshape(*cfg.grid, 3)
-    return FitResult(xyz, WRAPS[cfg.wrap], frame, som, steps, schedule)
+    return FitResult(xyz, WRAPS[cfg.wrap], frame, som, steps, schedule, init=used)
 
 
 def restart_seed(seed: int, restart: int) -> int:
@@ -194,21 +248,39 @@ def restart_seed(seed: int, restart: int) -> int:
     return int(np.random.SeedSequence([int(seed) & 0xFFFFFFFF, restart]).generate_state(1)[0])
 
 
-def fit_best(points: np.ndarray, cfg: FitConfig, restarts: int = 1, progress=None) -> FitResult:
-    """Train `restarts` maps (seeds from restart_seed) and keep the one with the lowest
-    topographic error on the points (ties: the first)."""
+def fit_best(points: np.ndarray, cfg: FitConfig, restarts: int = 1, progress=None,
+             fold_retries: int = FOLD_RETRIES) -> FitResult:
+    """Train `restarts` maps (seeds from restart_seed), check each for folds (folds.py, no ground
+    truth), and while the best so far is folded train up to `fold_retries` more (the next derived
+    seeds). Keeps the best: fold-free first, then the fewest fold signals, then the lowest
+    topographic error on the points (ties: the first). With fold_retries < 0 nothing is checked
+    and the lowest topographic error wins, as before issue 17."""
     from dataclasses import replace
 
+    from osmap_cli.surface.folds import fold_check
     from osmap_cli.surface.metrics import topographic_error
 
-    best = None
-    for r in range(restarts):
+    check = fold_retries >= 0
+
+    def key(res):
+        if not check:
+            return (res.topographic_error,)
+        return (res.folds["folded"], res.folds["score"], res.topographic_error)
+
+    best, history, r = None, [], 0
+    while r < restarts or (check and best.folds["folded"] and r < restarts + fold_retries):
         seed = restart_seed(cfg.seed, r)
         result = fit_surface(points, replace(cfg, seed=seed), progress=progress)
         result.topographic_error = topographic_error(result.grid_xyz, result.wrap, points)
         result.seed = seed
-        if best is None or result.topographic_error < best.topographic_error:
+        if check:
+            result.folds = fold_check(result.grid_xyz, result.wrap, points, seed)
+        history.append((seed, bool(check and result.folds["folded"])))
+        if best is None or key(result) < key(best):
             best = result
+        r += 1
+    best.fits_run = r
+    best.fold_history = history
     return best
 
 
@@ -225,3 +297,25 @@ def shape_config(shape, grid=(32, 32), method: str = "osmap", seed: int = 0,
     for key, value in overrides.items():
         setattr(cfg, key, value)
     return cfg
+
+
+def fit_report(result: FitResult) -> dict:
+    """The report fields of how the grid was obtained: init, fits_run, seed_used, fold_check
+    ('clean', 'refitted: clean after N fits', 'folded' or 'not checked') and the fold signals
+    of the kept grid (fold_gap_edges, fold_off_surface_nodes, fold_reversed_quads)."""
+    out = {"init": result.init, "fits_run": int(result.fits_run), "seed_used": int(result.seed)}
+    if result.folds is None:
+        out["fold_check"] = "not checked"
+        return out
+    folded_fits = sum(1 for _, folded in result.fold_history if folded)
+    if result.folds["folded"]:
+        out["fold_check"] = f"folded (every one of {result.fits_run} fits)"
+    elif folded_fits:
+        seeds = ", ".join(str(s) for s, folded in result.fold_history if folded)
+        out["fold_check"] = (f"refitted: {folded_fits} folded fit(s) found (seeds {seeds}), "
+                             f"clean after {result.fits_run} fits")
+    else:
+        out["fold_check"] = "clean"
+    for k in ("gap_edges", "off_surface_nodes", "reversed_quads"):
+        out[f"fold_{k}"] = float(result.folds[k])
+    return out

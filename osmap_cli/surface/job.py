@@ -45,6 +45,8 @@ class SurfaceRequest:
     sigma: str | None = None
     alpha: str | None = None
     restarts: int = 1
+    init: str = "auto"
+    fold_retries: int = 3
     seed: int = 0
     ply_out: str | None = None
     report_json: str | None = None
@@ -158,7 +160,8 @@ class SurfaceJob(Job):
             progress = tqdm(total=total, unit="step", unit_scale=True, file=sys.stderr,
                             desc="osmap surface", leave=False)
         try:
-            result = fit.fit_best(inputs.points, cfg, r.restarts, progress=progress)
+            result = fit.fit_best(inputs.points, cfg, r.restarts, progress=progress,
+                                  fold_retries=r.fold_retries)
         finally:
             if progress is not None:
                 progress.close()
@@ -169,6 +172,7 @@ class SurfaceJob(Job):
             metrics = met.evaluate(result.grid_xyz, result.wrap, inputs.shape, inputs.points,
                                    inputs.area)
             metrics["topographic_error"] = result.topographic_error
+            metrics.update(fit.fit_report(result))
         return result, metrics
 
     def stage(self, outputs, inputs: _Inputs, computed) -> tuple[str, list[str]]:
@@ -202,7 +206,13 @@ class SurfaceJob(Job):
             from osmap_cli.surface.metrics import format_report
 
             lines = format_report(metrics)
-        return "\n".join(lines), []
+        warnings = []
+        if result.folds is not None and result.folds["folded"]:
+            from osmap_cli.surface.folds import describe
+
+            warnings.append(f"the grid is still folded after {result.fits_run} fit(s) "
+                            f"({describe(result.folds)}); try --fold-retries, --grid or --vary")
+        return "\n".join(lines), warnings
 
 
 def _pair(text: str | None, option: str) -> tuple[float, float] | None:
@@ -226,7 +236,7 @@ def _options(r: SurfaceRequest):
     major_radius, minor_radius, radius = r.major_radius, r.minor_radius, r.radius
     n_points, wrap, method, vary, anisotropy = r.n_points, r.wrap, r.method, r.vary, r.anisotropy
     frame, axis, center, steps, sigma, alpha = r.frame, r.axis, r.center, r.steps, r.sigma, r.alpha
-    restarts, seed = r.restarts, r.seed
+    restarts, seed, init, fold_retries = r.restarts, r.seed, r.init, r.fold_retries
 
     if (input_path is None) == (shape is None):
         raise OsmapError("give exactly one of INPUT or --shape")
@@ -251,6 +261,8 @@ def _options(r: SurfaceRequest):
         raise OsmapError(f"--steps: must be positive, got {steps}")
     if restarts < 1:
         raise OsmapError(f"--restarts: must be at least 1, got {restarts}")
+    if fold_retries < 0:
+        raise OsmapError(f"--fold-retries: must be at least 0, got {fold_retries}")
     if not 0 <= seed <= 2**63 - 1:
         raise OsmapError(f"--seed: {seed} is out of range (allowed 0 to {2**63 - 1})")
     if anisotropy is not None and not 0.0 <= anisotropy <= 1.0:
@@ -267,7 +279,8 @@ def _options(r: SurfaceRequest):
                         axis=axis_vec, center=center_vec, vary=vary_specs,
                         anisotropy=rec.anisotropy if anisotropy is None else anisotropy,
                         steps=steps, sigma=_pair(sigma, "--sigma"),
-                        alpha=_pair(alpha, "--alpha") or fit.DEFAULT_ALPHA, seed=seed)
-    if cfg.alpha[0] > 1.0:
+                        alpha=_pair(alpha, "--alpha"), seed=seed, init=init)
+    fit.init_kind(cfg)  # --init geodesic with a wrapped map is an option error
+    if cfg.alpha is not None and cfg.alpha[0] > 1.0:
         raise OsmapError(f"--alpha: the learning rate must be at most 1, got {alpha!r}")
     return cfg, shape_obj, nodes

@@ -204,6 +204,14 @@ def format_report(metrics: dict) -> list[str]:
             lines.append(f"winding_{axis}: {text}")
         lines.append(f"windings_ok: {'yes' if metrics['windings_ok'] else 'no'}")
     lines.append(f"ideal_edge_length: {metrics['ideal_edge']:.4g}")
+    if "init" in metrics:
+        lines.append(f"init: {metrics['init']}")
+        lines.append(f"fits_run: {metrics['fits_run']}")
+        lines.append(f"seed_used: {metrics['seed_used']}")
+        lines.append(f"fold_check: {metrics['fold_check']}")
+        for k in ("gap_edges", "off_surface_nodes", "reversed_quads"):
+            if f"fold_{k}" in metrics:
+                lines.append(f"fold_{k}: {metrics[f'fold_{k}']:.4f}")
     return lines
 
 
