@@ -16,6 +16,7 @@ from osmap_cli.solid.options import SOLID_PRESETS
 from osmap_cli.solid.volumeio import read_volume
 
 FAST = SOLID_PRESETS["fast"][1]
+FAST_LEGACY = {**FAST, "method": "legacy"}
 
 SIDE = 16
 
@@ -33,6 +34,14 @@ def reference(exemplar):
     """The volume the CLI must write for --size 16 --seed 3 (library call, same options)."""
     pixels = read_image(exemplar).pixels
     options = SolidOptions(width=SIDE, height=SIDE, depth=SIDE, seed=3).replace(**FAST)
+    return synthesize_solid([pixels], options)
+
+
+@pytest.fixture(scope="module")
+def legacy_reference(exemplar):
+    """The same with the legacy method (exact copies and blended seams)."""
+    pixels = read_image(exemplar).pixels
+    options = SolidOptions(width=SIDE, height=SIDE, depth=SIDE, seed=3).replace(**FAST_LEGACY)
     return synthesize_solid([pixels], options)
 
 
@@ -69,8 +78,10 @@ def test_every_format_round_trips(run_cli, exemplar, reference, tmp_path, name, 
     assert [p.name for p in tmp_path.iterdir()] == [name]
 
 
-def test_uv_out_re_renders_the_volume(run_cli, exemplar, reference, tmp_path):
-    result = _run(run_cli, exemplar, tmp_path / "v.npy", "--uv-out", tmp_path / "uv.npy")
+def test_uv_out_re_renders_the_volume(run_cli, exemplar, legacy_reference, tmp_path):
+    reference = legacy_reference
+    result = _run(run_cli, exemplar, tmp_path / "v.npy", "--uv-out", tmp_path / "uv.npy",
+                  "--method", "legacy")
     assert result.code == 0, result.err
     uv = np.load(tmp_path / "uv.npy")
     assert uv.shape == (SIDE, SIDE, SIDE, 3) and uv.dtype == np.float32
@@ -79,19 +90,20 @@ def test_uv_out_re_renders_the_volume(run_cli, exemplar, reference, tmp_path):
     pixels = read_image(exemplar).pixels
     # the positions render the exact copies: the volume as blend = 0 makes it
     copies = render_volume(uv, pixels)
-    options = SolidOptions(width=SIDE, height=SIDE, depth=SIDE, seed=3).replace(**FAST)
+    options = SolidOptions(width=SIDE, height=SIDE, depth=SIDE, seed=3).replace(**FAST_LEGACY)
     assert np.array_equal(copies, synthesize_solid([pixels], options.replace(blend=0.0)).voxels)
     # another aligned map: each voxel takes that map's value at its (v, u)
     other = pixels[..., ::-1].copy()
     assert np.array_equal(render_volume(uv, [other] * 3), copies[..., ::-1])
 
 
-def test_blend_only_renders_the_seams(exemplar, reference):
+def test_blend_only_renders_the_seams(exemplar, legacy_reference):
     """blend changes the render, not the sources: the voxels are means of the proposed exemplar
     colours (inside the exemplar's colour range); a tiny bandwidth keeps only the proposals
     equal to the source, which renders the exact copies."""
     pixels = read_image(exemplar).pixels
-    options = SolidOptions(width=SIDE, height=SIDE, depth=SIDE, seed=3).replace(**FAST)
+    reference = legacy_reference
+    options = SolidOptions(width=SIDE, height=SIDE, depth=SIDE, seed=3).replace(**FAST_LEGACY)
     assert options.blend > 0
     hard = synthesize_solid([pixels], options.replace(blend=0.0))
     assert np.array_equal(hard.source, reference.source)
@@ -308,7 +320,7 @@ def test_seam_penalty_keeps_coherent_copies():
 
 def test_seam_acts_at_the_finest_level_coarse_seam_at_the_coarser_ones(exemplar):
     pixels = read_image(exemplar).pixels
-    base = SolidOptions(width=SIDE, height=SIDE, depth=SIDE, seed=3).replace(**FAST)
+    base = SolidOptions(width=SIDE, height=SIDE, depth=SIDE, seed=3).replace(**FAST_LEGACY)
 
     def volume(**changes):
         return synthesize_solid([pixels], base.replace(**changes)).voxels
@@ -329,7 +341,8 @@ def test_across_term_removes_stripes(samples):
     exemplar = read_image(samples / "cells.png").pixels[::2, ::2].copy()
 
     def stripes(**changes):
-        options = SolidOptions(width=40, height=40, depth=40, seed=1).replace(**changes)
+        options = SolidOptions(width=40, height=40, depth=40, seed=1,
+                               method="legacy").replace(**changes)
         volume = synthesize_solid([exemplar], options).voxels
         return max(np.mean([ts.stripe_fraction(exemplar, s) for s in slices])
                    for slices in _axis_slices(volume, count=8).values())

@@ -64,7 +64,8 @@ and the index (0, 1, 2 = x, y, z exemplar) each voxel was copied from;
 osmap_cli.solid.render_volume(uv, maps) re-renders it on aligned maps.
 
 \b
-Presets (--preset): built-in "default", "structured", "fast", "smooth", or a TOML
+Presets (--preset): built-in "default", "structured", "fast", "smooth",
+"legacy" (the last three of these tune or select the legacy method), or a TOML
 file with a [solid] table of tunables (osmap solid does not read the
 [synth] presets). --quality fast|high scales the search on top.
 Memory: the working set is estimated first; a size that does not fit in
@@ -130,11 +131,16 @@ class VolumeSize(click.ParamType):
 @click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True,
               help="Random seed; the same seed gives the same volume.")
 @click.option("--preset", default="default", show_default=True, metavar="NAME|FILE.toml",
-              help="Solid preset: default, structured, fast, smooth, or a TOML file with "
-                   "[solid].")
+              help="Solid preset: default, structured, fast, smooth, legacy, or a TOML file "
+                   "with [solid].")
 @click.option("--quality", type=click.Choice(("fast", "default", "high")), default="default",
               show_default=True, help="Speed / quality trade-off on top of the preset.")
 @click.option("--tileable", is_flag=True, help="The volume wraps around in x, y and z.")
+@click.option("--method", type=click.Choice(("osmap", "kopf", "legacy")), default=None,
+              help="osmap: the OS-Map lays out the coarsest volume, then a sharpened Kopf "
+              "optimisation (default); kopf: Kopf et al. 2007 texture optimisation as "
+              "published (softer, slower); legacy: the search + mode pipeline before issue 13 "
+              "(boxy). [default: the preset's, else osmap]")
 @click.option("--x", "ex_x", type=click.Path(path_type=str), default=None, metavar="FILE",
               help="Exemplar for the slices normal to x (rows z, cols y).")
 @click.option("--y", "ex_y", type=click.Path(path_type=str), default=None, metavar="FILE",
@@ -154,7 +160,7 @@ class VolumeSize(click.ParamType):
               "With --out-dir: a name template in DIR (e.g. '{stem}_uv.npy').")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 def solid_command(exemplars, output, out_dir, name_template, jobs, fail_fast, json_lines,
-                  overwrite, size, seed, preset, quality, tileable, ex_x, ex_y, ex_z, fmt,
+                  overwrite, size, seed, preset, quality, tileable, method, ex_x, ex_y, ex_z, fmt,
                   nrrd_encoding, preview, uv_out, quiet):
     from osmap_cli.solid.options import SolidOptions, load_solid_preset
 
@@ -167,7 +173,10 @@ def solid_command(exemplars, output, out_dir, name_template, jobs, fail_fast, js
                                  param_hint="'--preset'") from None
     x, y, z = size
     options = SolidOptions().replace(**loaded.values).replace(
-        width=x, height=y, depth=z, seed=seed, quality=quality, tileable=tileable).validated()
+        width=x, height=y, depth=z, seed=seed, quality=quality, tileable=tileable)
+    if method is not None:
+        options = options.replace(method=method)
+    options = options.validated()
 
     from osmap_cli.batch import expand_inputs, run_jobs
     from osmap_cli.solid.jobs import SolidJob

@@ -39,6 +39,9 @@ class SolidOptions:
     seed: int = _spec(0, 0, 2**63 - 1, "random seed")
     tileable: bool = _spec(False, doc="the volume wraps around in all three axes")
     quality: str = _spec("default", doc="fast, default or high")
+    method: str = _spec("legacy", doc="osmap (OS-Map layout + sharpened Kopf optimisation), "
+                        "kopf (Kopf et al. 2007 as published) or legacy (the pre-issue-13 "
+                        "search + mode pipeline)")
     # --- tunables (solid presets) ---
     levels: int = _spec(4, 1, 8, "pyramid levels (the coarsest volume keeps >= 16 voxels a side)")
     patch_radius: int = _spec(2, 1, 4, "in-plane matching window half-size")
@@ -71,6 +74,27 @@ class SolidOptions:
     som_steps_per_node: float = _spec(10.0, 0.0, 1000.0, "OS-Map steps per coarsest voxel")
     som_sigma_max: float = _spec(1.5, 0.1, 64.0, "OS-Map initial radius, voxels")
     som_anisotropy: float = _spec(0.25, 0.0, 1.0, "kernel weight across / along each component")
+    # --- methods osmap and kopf (texture optimisation, osmap_cli/solid/kopf.py) ---
+    kopf_window: int = _spec(8, 4, 16, "window side n of the slice neighbourhoods (n x n)")
+    kopf_iterations: int = _spec(3, 1, 20, "search + optimisation iterations per level")
+    kopf_r: float = _spec(0.8, 0.1, 2.0, "robust norm exponent r: IRLS weight = distance ** "
+                          "(r - 2)")
+    kopf_dims: int = _spec(24, 2, 64, "PCA dimensions of the window vectors (search space)")
+    kopf_stride: int = _spec(2, 1, 4, "window centres every kopf_stride voxels in each plane")
+    kopf_falloff: float = _spec(0.0, 0.0, 10.0, "centre weighting of each window's colours: "
+                                "exp(-falloff * d^2 / (n/2)^2); 0: flat (Kopf)")
+    kopf_histogram: float = _spec(1.0, 0.0, 10.0, "strength of the colour and exemplar-position "
+                                  "histogram weights (0: plain IRLS)")
+    sharpen: int = _spec(1, 0, 20, "method osmap: the last `sharpen` iterations of every level "
+                         "give each voxel one exemplar colour (the best-agreeing window's)")
+    pick_support: int = _spec(1, 0, 4, "half-size of the in-plane area over which a window "
+                              "must agree with the averaged volume to be picked")
+    sharpen_bandwidth: float = _spec(0.0, 0.0, 10.0, "sharpening by mean shift: proposals "
+                                     "within this squared colour distance (relative to the "
+                                     "exemplar's colour variance) of the densest one are "
+                                     "averaged; 0: pick the best-agreeing window instead")
+    final_histogram: float = _spec(1.0, 0.0, 1.0, "method osmap: how far the final colours are "
+                                   "moved to the exemplar's per-channel distribution")
 
     @classmethod
     def tunables(cls) -> dict[str, dataclasses.Field]:
@@ -123,12 +147,16 @@ class SolidOptions:
 
 SOLID_PRESETS: dict[str, tuple[str, dict]] = {
     "default": ("the built-in defaults: stone, marble, terrazzo, gravel", {}),
-    "structured": ("larger windows and more search: veins, grains, planks",
-                   {"patch_radius": 3, "iterations": 3, "knn": 3}),
+    "structured": ("legacy method, larger windows and more search: veins, grains, planks",
+                   {"method": "legacy", "patch_radius": 3, "iterations": 3, "knn": 3}),
     "fast": ("previews: less search", {"iterations": 1, "coarse_iterations": 3, "knn": 1,
-                                       "random_candidates": 1, "som_steps_per_node": 4.0}),
-    "smooth": ("far fewer 1-voxel stripes and better coherence, but paler (the majority "
-               "colour wins; grains and chips grow and thin out)", {"across": 4.0}),
+                                       "random_candidates": 1, "som_steps_per_node": 4.0,
+                                       "kopf_iterations": 1}),
+    "smooth": ("legacy method with far fewer 1-voxel stripes and better coherence, but paler "
+               "(the majority colour wins; grains and chips grow and thin out)",
+               {"method": "legacy", "across": 4.0}),
+    "legacy": ("the default before issue 13: search + mode pipeline (boxy, pale; for "
+               "comparison)", {"method": "legacy"}),
 }
 
 

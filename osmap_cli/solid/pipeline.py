@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from osmap_cli.engine import Orientation, OSMap, Schedule
+from osmap_cli.errors import OsmapError
 from osmap_cli.solid.options import SolidOptions
 from osmap_cli.synth.appearance import neighbourhood_vectors
 from osmap_cli.synth.pyramid import build_pyramid, half_size
@@ -34,6 +35,7 @@ MAX_KNN_REFERENCES = 4096
 ACROSS = 1.0e4  # OS-Map kernel weight across a component's slice plane: no update there
 EXHAUSTIVE_ITERATIONS = 2  # coarsest level: exhaustive search first, then propagation
 NORMAL_DIM = (2, 1, 0)  # volume dim (z, y, x order) normal to axis x, y, z
+METHODS = ("osmap", "kopf", "legacy")
 
 
 @dataclass(frozen=True)
@@ -233,6 +235,8 @@ def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidRe
     three (x, y, z) with equal channel counts. `progress(fraction)` is called as levels finish.
     """
     opts = options.validated().with_quality()
+    if opts.method not in METHODS:
+        raise OsmapError(f"--method: {opts.method!r} is not one of {', '.join(METHODS)}")
     if len(exemplars) == 1:
         images, ex_of_axis = [exemplars[0]], np.zeros(3, np.int64)
     else:
@@ -246,6 +250,8 @@ def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidRe
     for _ in range(levels - 1):
         z, y, x = shapes[-1]
         shapes.append((half_size((z, y))[0], *half_size((y, x))))
+    if opts.method != "legacy":
+        return _synthesize_optimised(images, ex_of_axis, opts, pyramids, shapes, progress)
     r = opts.patch_radius
     work = [opts.coarse_iterations * 2] + [opts.iterations] * (levels - 1)
     total = float(sum(work))
@@ -321,3 +327,18 @@ def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidRe
     bparams = cparams._replace(bandwidth2=opts.blend * variance)
     return SolidResult(blend_render(pos, cost, feat_stack, full, ex_of_axis, source, bparams),
                        source)
+
+
+def _synthesize_optimised(images, ex_of_axis, opts, pyramids, shapes, progress):
+    """Methods osmap and kopf: texture optimisation (osmap_cli.solid.kopf); osmap starts from
+    the OS-Map's layout of the coarsest volume, kopf from random positions."""
+    from osmap_cli.solid import kopf
+
+    def organise_fn(shape, ex_shapes, lo, hi):
+        if opts.method != "osmap":
+            return None
+        return organise(shape, ex_shapes, ex_of_axis, lo, hi, opts, opts.seed)
+
+    voxels, source = kopf.optimise(images, ex_of_axis, opts, shapes, pyramids, _stack,
+                                   organise_fn, upsample_positions, upsample_linear, progress)
+    return SolidResult(voxels, source)
