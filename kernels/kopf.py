@@ -33,27 +33,32 @@ KopfSearch = namedtuple("KopfSearch", "size stride wrap exhaustive n_random lo h
 
 # Parameters of an optimisation (averaging) pass.
 #   size, stride, wrap  as above
-#   power       float64     weight = (squared distance + eps) ** power  ((r - 2) / 2 for IRLS)
-#   eps         float64
-#   falloff     float64     window weight exp(-falloff * (dr^2 + dc^2) / (n / 2)^2); 0: flat
-KopfAverage = namedtuple("KopfAverage", "size stride wrap power eps falloff")
+#   window      float64[n, n] weight of each window pixel (1: flat, Kopf; centre-weighted)
+# A proposal's weight is centre_weight[a, centre] (the IRLS weight of the window's match,
+# (squared distance + eps) ** ((r - 2) / 2)) x window[pixel] x pixel_weight[e, row, col].
+KopfAverage = namedtuple("KopfAverage", "size stride wrap window")
+
+
+@njit(cache=True, inline="always")
+def _fix(q, n, wrap):
+    if wrap:
+        return np.int64(q % n)
+    if q < 0:
+        return np.int64(0)
+    if q >= n:
+        return np.int64(n - 1)
+    return np.int64(q)
 
 
 @njit(cache=True, inline="always")
 def _at(z, y, x, a, dr, dc, shape, wrap):
-    """Voxel at in-plane offset (dr, dc) of axis a from (z, y, x), wrapped or clamped."""
-    q = np.empty(3, np.int64)
-    q[0] = z
-    q[1] = y
-    q[2] = x
-    q[PLANE[a, 0]] += dr
-    q[PLANE[a, 1]] += dc
-    for d in range(3):
-        if wrap:
-            q[d] = q[d] % shape[d]
-        else:
-            q[d] = min(max(q[d], 0), shape[d] - 1)
-    return q[0], q[1], q[2]
+    """Voxel at in-plane offset (dr, dc) of axis a from (z, y, x), wrapped or clamped.
+    Axis 0 (x): rows z, cols y; 1 (y): rows z, cols x; 2 (z): rows y, cols x."""
+    if a == 0:
+        return _fix(z + dr, shape[0], wrap), _fix(y + dc, shape[1], wrap), np.int64(x)
+    if a == 1:
+        return _fix(z + dr, shape[0], wrap), np.int64(y), _fix(x + dc, shape[2], wrap)
+    return np.int64(z), _fix(y + dr, shape[1], wrap), _fix(x + dc, shape[2], wrap)
 
 
 @njit(cache=True, inline="always")
@@ -161,7 +166,7 @@ def kopf_search(vol, pos, new_pos, dist, feats, basis, mean, ex_of_axis, knn, p)
 
 
 @njit(cache=True, parallel=True)
-def kopf_average(pos, dist, images, ex_of_axis, pixel_weight, p, out, source):
+def kopf_average(pos, centre_weight, images, ex_of_axis, pixel_weight, p, out, source):
     """Every voxel: the weighted mean of the exemplar colours that the windows of all three axes
     covering it place there (weight = IRLS weight of the window's match x window falloff x
     pixel_weight (E, H, W): the histogram modulation). source (Z, Y, X, 3) gets the (axis, row,
@@ -172,7 +177,6 @@ def kopf_average(pos, dist, images, ex_of_axis, pixel_weight, p, out, source):
     h0 = n // 2
     nc = out.shape[3]
     s = p.stride
-    half2 = max((n / 2.0) ** 2, 1.0)
     for z in prange(nz):
         acc = np.empty(nc, np.float64)
         for y in range(ny):
@@ -183,9 +187,11 @@ def kopf_average(pos, dist, images, ex_of_axis, pixel_weight, p, out, source):
                 sa, sr, sc = 0, 0, 0
                 for a in range(3):
                     e = ex_of_axis[a]
-                    for ir in range(n):
+                    vr = z if a < 2 else y
+                    vc = y if a == 0 else x
+                    for ir in range((vr + h0) % s, n, s):
                         dr = ir - h0
-                        for ic in range(n):
+                        for ic in range((vc + h0) % s, n, s):
                             dc = ic - h0
                             cz, cy, cx = _at(z, y, x, a, -dr, -dc, shape, True)
                             if not _is_centre(cz, cy, cx, a, s):
@@ -196,10 +202,8 @@ def kopf_average(pos, dist, images, ex_of_axis, pixel_weight, p, out, source):
                                     continue
                             er = pos[a, cz, cy, cx, 0] + dr
                             ec = pos[a, cz, cy, cx, 1] + dc
-                            w = (dist[a, cz, cy, cx] + p.eps) ** p.power
-                            if p.falloff > 0.0:
-                                w *= np.exp(-p.falloff * (dr * dr + dc * dc) / half2)
-                            w *= pixel_weight[e, er, ec]
+                            w = (centre_weight[a, cz, cy, cx] * p.window[ir, ic]
+                                 * pixel_weight[e, er, ec])
                             for ch in range(nc):
                                 acc[ch] += w * images[e, er, ec, ch]
                             wsum += w
@@ -213,7 +217,7 @@ def kopf_average(pos, dist, images, ex_of_axis, pixel_weight, p, out, source):
 
 
 @njit(cache=True, parallel=True)
-def kopf_pick(pos, dist, images, ex_of_axis, target, p, support, out, source):
+def kopf_pick(pos, images, ex_of_axis, target, p, support, out, source):
     """Sharpening: every voxel takes the single exemplar colour, among those the covering
     windows place on it, whose window agrees best with `target` (the averaged volume) over the
     (2 support + 1)^2 in-plane neighbourhood of the voxel (support 0: the voxel alone, which
@@ -233,9 +237,11 @@ def kopf_pick(pos, dist, images, ex_of_axis, target, p, support, out, source):
                     e = ex_of_axis[a]
                     hgt = images.shape[1]
                     wid = images.shape[2]
-                    for ir in range(n):
+                    vr = z if a < 2 else y
+                    vc = y if a == 0 else x
+                    for ir in range((vr + h0) % s, n, s):
                         dr = ir - h0
-                        for ic in range(n):
+                        for ic in range((vc + h0) % s, n, s):
                             dc = ic - h0
                             cz, cy, cx = _at(z, y, x, a, -dr, -dc, shape, True)
                             if not _is_centre(cz, cy, cx, a, s):
@@ -318,33 +324,41 @@ def position_counts(pos, stride, size, ex_of_axis, n_ex, h, w):
 
 
 @njit(cache=True, parallel=True)
-def kopf_cluster(pos, dist, images, ex_of_axis, pixel_weight, p, bandwidth2, out, source):
+def kopf_cluster(pos, centre_weight, images, ex_of_axis, pixel_weight, p, bandwidth2, steps,
+                 cross, out, source):
     """Sharpening (mean shift instead of the mean): of the colours that the covering windows of
     all three axes place on a voxel (weights as in kopf_average), the one of highest weighted
     density (Epanechnikov kernel, squared radius bandwidth2) wins, and the voxel is the weighted
     mean of the proposals within bandwidth of it: flat areas are averaged as in Kopf et al.,
-    edges are not (the two sides fall into different clusters and only one is kept)."""
+    edges are not (the two sides fall into different clusters and only one is kept).
+    steps > 0: instead, `steps` mean-shift steps (Gaussian kernel) from the weighted mean: flat
+    areas sharpen, boundaries keep some of their antialiasing (no pixel staircases).
+    cross: the density of a proposal counts only the proposals of the other two slice families
+    (a colour only one family's windows propose, e.g. one slice's copy showing as a 1-voxel
+    stripe across the other families' slices, cannot win)."""
     nz, ny, nx = out.shape[0], out.shape[1], out.shape[2]
     shape = (nz, ny, nx)
     n = p.size
     h0 = n // 2
     nc = out.shape[3]
     s = p.stride
-    half2 = max((n / 2.0) ** 2, 1.0)
     most = 3 * (n // s + 1) * (n // s + 1)
     for z in prange(nz):
         col = np.empty((most, nc), np.float64)
         wts = np.empty(most, np.float64)
         ids = np.empty((most, 3), np.int64)
         acc = np.empty(nc, np.float64)
+        mode = np.empty(nc, np.float64)
         for y in range(ny):
             for x in range(nx):
                 m = 0
                 for a in range(3):
                     e = ex_of_axis[a]
-                    for ir in range(n):
+                    vr = z if a < 2 else y
+                    vc = y if a == 0 else x
+                    for ir in range((vr + h0) % s, n, s):
                         dr = ir - h0
-                        for ic in range(n):
+                        for ic in range((vc + h0) % s, n, s):
                             dc = ic - h0
                             cz, cy, cx = _at(z, y, x, a, -dr, -dc, shape, True)
                             if not _is_centre(cz, cy, cx, a, s):
@@ -355,10 +369,8 @@ def kopf_cluster(pos, dist, images, ex_of_axis, pixel_weight, p, bandwidth2, out
                                     continue
                             er = pos[a, cz, cy, cx, 0] + dr
                             ec = pos[a, cz, cy, cx, 1] + dc
-                            w = (dist[a, cz, cy, cx] + p.eps) ** p.power
-                            if p.falloff > 0.0:
-                                w *= np.exp(-p.falloff * (dr * dr + dc * dc) / half2)
-                            w *= pixel_weight[e, er, ec]
+                            w = (centre_weight[a, cz, cy, cx] * p.window[ir, ic]
+                                 * pixel_weight[e, er, ec])
                             for ch in range(nc):
                                 col[m, ch] = images[e, er, ec, ch]
                             wts[m] = w
@@ -366,11 +378,52 @@ def kopf_cluster(pos, dist, images, ex_of_axis, pixel_weight, p, bandwidth2, out
                             ids[m, 1] = er
                             ids[m, 2] = ec
                             m += 1
+                if steps > 0:
+                    wsum = 0.0
+                    acc[:] = 0.0
+                    for j in range(m):
+                        for ch in range(nc):
+                            acc[ch] += wts[j] * col[j, ch]
+                        wsum += wts[j]
+                    for ch in range(nc):
+                        mode[ch] = acc[ch] / wsum if wsum > 0 else 0.0
+                    for _ in range(steps):
+                        acc[:] = 0.0
+                        wsum = 0.0
+                        for j in range(m):
+                            d2 = 0.0
+                            for ch in range(nc):
+                                t = col[j, ch] - mode[ch]
+                                d2 += t * t
+                            k = wts[j] * np.exp(-d2 / bandwidth2)
+                            for ch in range(nc):
+                                acc[ch] += k * col[j, ch]
+                            wsum += k
+                        if wsum > 0:
+                            for ch in range(nc):
+                                mode[ch] = acc[ch] / wsum
+                    bi = 0
+                    near = np.inf
+                    for j in range(m):
+                        d2 = 0.0
+                        for ch in range(nc):
+                            t = col[j, ch] - mode[ch]
+                            d2 += t * t
+                        if d2 < near:
+                            near, bi = d2, j
+                    for ch in range(nc):
+                        out[z, y, x, ch] = mode[ch]
+                    source[z, y, x, 0] = ids[bi, 0]
+                    source[z, y, x, 1] = ids[bi, 1]
+                    source[z, y, x, 2] = ids[bi, 2]
+                    continue
                 best = -1.0
                 bi = 0
                 for i in range(m):
                     dens = 0.0
                     for j in range(m):
+                        if cross and ids[j, 0] == ids[i, 0]:
+                            continue
                         d2 = 0.0
                         for ch in range(nc):
                             t = col[i, ch] - col[j, ch]

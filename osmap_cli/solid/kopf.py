@@ -143,7 +143,7 @@ def optimise(images, ex_of_axis, opts: SolidOptions, shapes, pyramids, stack, or
     levels = len(shapes)
     n_ex = len(images)
     sharpen = opts.sharpen if opts.method == "osmap" else 0
-    hist = opts.kopf_histogram
+    hist = opts.histogram_weight if opts.method == "osmap" else opts.kopf_histogram
     total = float(levels * opts.kopf_iterations)
     done = 0.0
     pos = vol = source = prev_lo = prev_hi = None
@@ -168,8 +168,13 @@ def optimise(images, ex_of_axis, opts: SolidOptions, shapes, pyramids, stack, or
         vshape = shapes[level]
         search_p = dict(size=n, stride=opts.kopf_stride, wrap=opts.tileable, n_random=0,
                         lo=lo, hi=hi, seed=np.uint64(opts.seed))
-        avg_p = KopfAverage(n, opts.kopf_stride, opts.tileable, (opts.kopf_r - 2.0) / 2.0,
-                            EPS * basis.shape[0], opts.kopf_falloff)
+        off = np.arange(n, dtype=np.float64) - n // 2
+        falloff = opts.window_falloff if opts.method == "osmap" else 0.0
+        window = np.exp(-falloff * (off[:, None] ** 2 + off[None, :] ** 2)
+                        / max((n / 2.0) ** 2, 1.0))
+        avg_p = KopfAverage(n, opts.kopf_stride, opts.tileable, window)
+        eps = EPS * basis.shape[0]
+        power = (opts.kopf_r - 2.0) / 2.0
         dist = np.ones((3, *vshape), np.float32)
         coarsest = pos is None
         if coarsest:
@@ -179,13 +184,21 @@ def optimise(images, ex_of_axis, opts: SolidOptions, shapes, pyramids, stack, or
             vol = np.empty((*vshape, imgs.shape[3]), np.float32)
             source = np.empty((*vshape, 3), np.int32)
             kopf_average(pos, dist, imgs, ex_of_axis, np.ones(imgs.shape[:3], np.float32),
-                         avg_p._replace(power=0.0), vol, source)
+                         avg_p, vol, source)
         else:
             filled = np.empty_like(pos)
             fill_positions(pos, opts.kopf_stride, prev_lo, prev_hi, ex_of_axis, filled)
             pos = upsample_positions(filled, vshape, lo, hi, ex_of_axis)
-            vol = upsample_linear(vol, vshape, opts.tileable)
             source = np.empty((*vshape, 3), np.int32)
+            if opts.upsample_render and opts.method == "osmap":
+                # the finer level starts from its own exemplar detail at the upsampled
+                # positions, not from the coarser volume blurred by interpolation (a blurred
+                # start makes the search prefer smooth exemplar areas: features grow)
+                vol = np.empty((*vshape, imgs.shape[3]), np.float32)
+                kopf_average(pos, dist, imgs, ex_of_axis, np.ones(imgs.shape[:3], np.float32),
+                             avg_p, vol, source)
+            else:
+                vol = upsample_linear(vol, vshape, opts.tileable)
         for it in range(opts.kopf_iterations):
             params = KopfSearch(exhaustive=coarsest and it == 0,
                                 salt=np.uint64(level * 1000 + it), **search_p)
@@ -197,15 +210,19 @@ def optimise(images, ex_of_axis, opts: SolidOptions, shapes, pyramids, stack, or
                 weights = (colour_weights(vol, imgs, ex_of_axis, hist)
                            * position_weights(pos, opts, ex_of_axis, n_ex, hw, hist))
             averaged = np.empty_like(vol)
-            kopf_average(pos, dist, imgs, ex_of_axis, weights, avg_p, averaged, source)
+            cw = ((dist.astype(np.float64) + eps) ** power).astype(np.float32)
+            kopf_average(pos, cw, imgs, ex_of_axis, weights, avg_p, averaged, source)
             vol = averaged
-            if sharpen and it >= opts.kopf_iterations - sharpen:
+            last = level == 0 and it == opts.kopf_iterations - 1
+            if (sharpen and level < opts.sharpen_levels and it >= opts.kopf_iterations - sharpen
+                    and (opts.sharpen_final or not last) and (level > 0 or opts.sharpen_finest)):
                 sharp = np.empty_like(vol)
                 if opts.sharpen_bandwidth > 0:
-                    kopf_cluster(pos, dist, imgs, ex_of_axis, weights, avg_p,
-                                 opts.sharpen_bandwidth * variance, sharp, source)
+                    kopf_cluster(pos, cw, imgs, ex_of_axis, weights, avg_p,
+                                 opts.sharpen_bandwidth * variance, opts.sharpen_steps,
+                                 opts.sharpen_cross > 0, sharp, source)
                 else:
-                    kopf_pick(pos, dist, imgs, ex_of_axis, averaged, avg_p, opts.pick_support,
+                    kopf_pick(pos, imgs, ex_of_axis, averaged, avg_p, opts.pick_support,
                               sharp, source)
                 vol = sharp
             done += 1

@@ -39,7 +39,7 @@ class SolidOptions:
     seed: int = _spec(0, 0, 2**63 - 1, "random seed")
     tileable: bool = _spec(False, doc="the volume wraps around in all three axes")
     quality: str = _spec("default", doc="fast, default or high")
-    method: str = _spec("legacy", doc="osmap (OS-Map layout + sharpened Kopf optimisation), "
+    method: str = _spec("osmap", doc="osmap (OS-Map layout + sharpened Kopf optimisation), "
                         "kopf (Kopf et al. 2007 as published) or legacy (the pre-issue-13 "
                         "search + mode pipeline)")
     # --- tunables (solid presets) ---
@@ -76,24 +76,42 @@ class SolidOptions:
     som_anisotropy: float = _spec(0.25, 0.0, 1.0, "kernel weight across / along each component")
     # --- methods osmap and kopf (texture optimisation, osmap_cli/solid/kopf.py) ---
     kopf_window: int = _spec(8, 4, 16, "window side n of the slice neighbourhoods (n x n)")
-    kopf_iterations: int = _spec(3, 1, 20, "search + optimisation iterations per level")
+    kopf_iterations: int = _spec(4, 1, 20, "search + optimisation iterations per level")
     kopf_r: float = _spec(0.8, 0.1, 2.0, "robust norm exponent r: IRLS weight = distance ** "
                           "(r - 2)")
     kopf_dims: int = _spec(24, 2, 64, "PCA dimensions of the window vectors (search space)")
     kopf_stride: int = _spec(2, 1, 4, "window centres every kopf_stride voxels in each plane")
-    kopf_falloff: float = _spec(0.0, 0.0, 10.0, "centre weighting of each window's colours: "
-                                "exp(-falloff * d^2 / (n/2)^2); 0: flat (Kopf)")
-    kopf_histogram: float = _spec(1.0, 0.0, 10.0, "strength of the colour and exemplar-position "
-                                  "histogram weights (0: plain IRLS)")
-    sharpen: int = _spec(1, 0, 20, "method osmap: the last `sharpen` iterations of every level "
+    window_falloff: float = _spec(0.0, 0.0, 10.0, "method osmap: centre weighting of each "
+                                  "window's colours, exp(-falloff * d^2 / (n/2)^2) (kopf: flat "
+                                  "windows, as published)")
+    kopf_histogram: float = _spec(1.0, 0.0, 10.0, "method kopf: strength of the colour and "
+                                  "exemplar-position histogram weights (0: plain IRLS)")
+    histogram_weight: float = _spec(3.0, 0.0, 10.0, "method osmap: the same strength (stronger "
+                                    "than kopf's: the sharpening favours the majority colour)")
+    sharpen: int = _spec(3, 0, 20, "method osmap: the last `sharpen` iterations of every level "
                          "give each voxel one exemplar colour (the best-agreeing window's)")
+    sharpen_levels: int = _spec(8, 0, 8, "method osmap: sharpen at the finest this many levels "
+                                "(the coarser ones average, as in Kopf et al.)")
+    sharpen_cross: int = _spec(1, 0, 1, "1: a proposal's density counts only the other two "
+                               "slice families' proposals (against 1-voxel stripes)")
+    sharpen_finest: int = _spec(0, 0, 1, "0: the finest level only averages (faster; the "
+                                "sharpened coarser levels set the structure)")
+    sharpen_final: int = _spec(0, 0, 1, "1: the finest level's last iteration is sharpened "
+                               "too; 0: the volume is its average (soft antialiased boundaries "
+                               "instead of pixel staircases)")
+    upsample_render: int = _spec(1, 0, 1, "method osmap: 1: each finer level starts from the "
+                                 "exemplar colours at the upsampled positions; 0: from the "
+                                 "coarser volume interpolated (Kopf)")
     pick_support: int = _spec(1, 0, 4, "half-size of the in-plane area over which a window "
                               "must agree with the averaged volume to be picked")
-    sharpen_bandwidth: float = _spec(0.0, 0.0, 10.0, "sharpening by mean shift: proposals "
+    sharpen_bandwidth: float = _spec(0.25, 0.0, 10.0, "sharpening by mean shift: proposals "
                                      "within this squared colour distance (relative to the "
                                      "exemplar's colour variance) of the densest one are "
                                      "averaged; 0: pick the best-agreeing window instead")
-    final_histogram: float = _spec(1.0, 0.0, 1.0, "method osmap: how far the final colours are "
+    sharpen_steps: int = _spec(0, 0, 20, "with sharpen_bandwidth: mean-shift steps from the "
+                               "weighted mean (Gaussian kernel) instead of the densest "
+                               "proposal's cluster; 0: densest")
+    final_histogram: float = _spec(0.5, 0.0, 1.0, "method osmap: how far the final colours are "
                                    "moved to the exemplar's per-channel distribution")
 
     @classmethod
