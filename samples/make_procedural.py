@@ -18,8 +18,9 @@ from the repository root:
                                      wavy light/dark grain lines along x, fine fibre streaks).
 * ``wood_end.png``  128x128 RGB  -- end grain of the same log: concentric rings (the log's axis
                                      off the image, so arcs), same colours.
-  Both are slices of one procedural 3D wood function, so they are consistent: a block with its
-  grain along x is `osmap solid --x wood_end.png --y wood_side.png --z wood_side.png`.
+* ``wood_top.png``  128x128 RGB  -- flat-sawn face of the same log (rings cut tangentially).
+  All three are slices of one procedural 3D wood function, so they are consistent: a block
+  with its grain along x is `osmap solid --x wood_end.png --y wood_side.png --z wood_top.png`.
 
 Cells and weave tile seamlessly (distances are measured on a torus and the weave repeat divides
 128); the wood pair does not tile.
@@ -169,14 +170,17 @@ def _wood(x: np.ndarray, y: np.ndarray, z: np.ndarray, seed: int = 5) -> np.ndar
     return np.clip(rgb, 0.0, 1.0)
 
 
-def wood_pair(size: int = 128) -> tuple[np.ndarray, np.ndarray]:
-    """(side grain, end grain): the log cut along its axis (quarter-sawn: rows z, cols x in the
-    plane y = 64 through the axis: grain lines along the columns) and across it (rows z, cols y
-    at x = 64: arcs of the rings around the axis above the image)."""
+def wood_set(size: int = 128) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(side, end, top): three cuts of one block of the log, consistent with each other.
+    side: quarter-sawn, rows z, cols x in the plane y = 64 through the axis (grain lines along
+    the columns); end: rows z, cols y at x = 64 (arcs of the rings around the axis above the
+    image); top: flat-sawn, rows y, cols x at z = 64 (the rings cut tangentially: lines along x
+    whose spacing widens towards the middle)."""
     rows, cols = np.mgrid[0:size, 0:size].astype(np.float64)
     side = _wood(x=cols, y=np.full_like(rows, 64.0), z=rows)
     end = _wood(x=np.full_like(rows, 64.0), y=cols, z=rows)
-    return side, end
+    top = _wood(x=cols, y=rows, z=np.full_like(rows, 64.0))
+    return side, end, top
 
 
 def write_png(path: str, pixels: np.ndarray) -> None:
@@ -208,9 +212,10 @@ def main() -> int:
 
     write_png(os.path.join(HERE, "weave.png"), weave())
 
-    side, end = wood_pair()
+    side, end, top = wood_set()
     write_png(os.path.join(HERE, "wood_side.png"), side)
     write_png(os.path.join(HERE, "wood_end.png"), end)
+    write_png(os.path.join(HERE, "wood_top.png"), top)
     return 0
 
 

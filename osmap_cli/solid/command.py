@@ -33,10 +33,15 @@ jobs at once; the bytes do not depend on N. --x/--y/--z make one volume.
 
 \b
 Every voxel holds three exemplar positions, one per slice family (slices
-normal to x, y and z), organised by an OS-Map on the coarsest volume and
-then optimised level by level so that the slices along all three axes
-match the exemplar; each voxel takes the colour most of its neighbours'
-matches agree on.
+normal to x, y and z). --method osmap (default): an OS-Map lays them out
+on the coarsest volume, then a texture optimisation (Kopf et al. 2007)
+runs level by level: every slice window finds its nearest exemplar
+window, every voxel takes a robust mean of the colours the windows of
+all three families place on it (at the coarser levels the densest
+colour cluster that two families agree on), and the colours are moved
+half way to the exemplar's histogram. --method kopf: the paper's
+optimisation as published (softer). --method legacy: the search + mode
+pipeline of earlier versions (boxier, paler).
 
 \b
 --x/--y/--z give one exemplar per slice family (Kopf et al. 2007): slices
@@ -139,8 +144,8 @@ class VolumeSize(click.ParamType):
 @click.option("--method", type=click.Choice(("osmap", "kopf", "legacy")), default=None,
               help="osmap: the OS-Map lays out the coarsest volume, then a sharpened Kopf "
               "optimisation (default); kopf: Kopf et al. 2007 texture optimisation as "
-              "published (softer, slower); legacy: the search + mode pipeline before issue 13 "
-              "(boxy). [default: the preset's, else osmap]")
+              "published (softer, features too large); legacy: the search + mode pipeline "
+              "before issue 13 (boxy). [default: the preset's, else osmap]")
 @click.option("--x", "ex_x", type=click.Path(path_type=str), default=None, metavar="FILE",
               help="Exemplar for the slices normal to x (rows z, cols y).")
 @click.option("--y", "ex_y", type=click.Path(path_type=str), default=None, metavar="FILE",
