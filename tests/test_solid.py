@@ -404,6 +404,9 @@ def test_method_option_selects_the_pipeline(run_cli, exemplar, tmp_path):
     assert bad.code == 2 and "--method" in bad.err
     assert SolidOptions().replace(**SOLID_PRESETS["legacy"][1]).method == "legacy"
     assert SolidOptions().method == "osmap"
+    helptext = run_cli("solid", "--help")
+    assert helptext.code == 0
+    assert "--method [osmap|kopf|legacy]" in helptext.out and "Kopf et al. 2007" in helptext.out
 
 
 def _boxy(exemplar, side, block, seed=0):
