@@ -1,5 +1,7 @@
 """Solid benchmark: timings of `synthesize_solid` (64^3 and 128^3 from a 128 px exemplar) and
-the quality table from texmetrics.py on the solid development exemplars.
+the quality table from texmetrics.py and solidlook.py on the solid development exemplars, for
+the default method (osmap), `--method kopf` and the previous default (`--method legacy`, the
+same as `--preset legacy`) side by side.
 
 `run(quick=False) -> str` returns the Markdown section "## Solid" (bench/run.py includes it).
 Exemplars come from ../shared/exemplars/small (never copied into the repository); 64 px
@@ -23,6 +25,8 @@ REPO = Path(__file__).resolve().parent.parent
 SHARED = REPO.parent / "shared"
 EXEMPLARS = SHARED / "exemplars" / "small"
 TEXMETRICS = SHARED / "tools" / "texmetrics.py"
+SOLIDLOOK = SHARED / "tools" / "solidlook.py"
+METHODS = ("osmap", "kopf", "legacy")
 TEXMETRICS_PY = Path(os.environ.get("TEXMETRICS_PYTHON", "/tmp/texmetrics-venv/bin/python"))
 NAMES = ("terrazzo_granite", "marble_swirl_green", "wood_planks_horizontal",
          "gravel_green_stones")
@@ -36,10 +40,10 @@ def _exemplar(name: str, side: int) -> np.ndarray:
     return image if image.shape[0] == side else resize(image, side, side)
 
 
-def _time(exemplar, side: int, runs: int, seed: int = 1):
+def _time(exemplar, side: int, runs: int, seed: int = 1, method: str = "osmap"):
     from osmap_cli.solid import SolidOptions, synthesize_solid
 
-    options = SolidOptions(width=side, height=side, depth=side, seed=seed)
+    options = SolidOptions(width=side, height=side, depth=side, seed=seed, method=method)
     walls, cpus = [], []
     for _ in range(runs):
         wall, cpu = time.perf_counter(), time.process_time()
@@ -51,6 +55,12 @@ def _time(exemplar, side: int, runs: int, seed: int = 1):
 
 def _metrics(exemplar_path: Path, volume_path: Path) -> dict:
     out = subprocess.run([str(TEXMETRICS_PY), str(TEXMETRICS), str(exemplar_path),
+                          str(volume_path), "--json"], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout)
+
+
+def _look(exemplar_path: Path, volume_path: Path) -> dict:
+    out = subprocess.run([str(TEXMETRICS_PY), str(SOLIDLOOK), str(exemplar_path),
                           str(volume_path), "--json"], capture_output=True, text=True, check=True)
     return json.loads(out.stdout)
 
@@ -101,22 +111,24 @@ def run(quick: bool = False) -> str:
     lines = ["## Solid", ""]
     threads = os.environ.get("NUMBA_NUM_THREADS", str(os.cpu_count()))
     ex128 = _exemplar("marble_swirl_green", 128)
-    _time(ex128, 16, 1)  # compile
+    for method in METHODS:
+        _time(ex128, 16, 1, method=method)  # compile
     rows = []
-    for side, runs in ((64, 1 if quick else 5), (128, 1 if quick else 2)):
-        walls, cpus, _ = _time(ex128, side, runs)
-        rows.append(f"| {side}^3 | {runs} | {statistics.median(walls):.1f} | {min(walls):.1f} | "
-                    f"{max(walls):.1f} | {statistics.median(cpus):.1f} |")
+    for method in ("osmap", "kopf"):
+        for side, runs in ((64, 1 if quick else 3), (128, 1 if quick else 2)):
+            walls, cpus, _ = _time(ex128, side, runs, method=method)
+            rows.append(f"| {method} | {side}^3 | {runs} | {statistics.median(walls):.1f} | "
+                        f"{min(walls):.1f} | {max(walls):.1f} | {statistics.median(cpus):.1f} |")
     lines += [f"Timing: marble_swirl_green (128 px) -> N^3, seed 1, default options, "
               f"NUMBA_NUM_THREADS={threads}; seconds.", "",
-              "| volume | runs | median wall | min | max | median CPU |",
-              "|---|---|---|---|---|---|", *rows, ""]
+              "| method | volume | runs | median wall | min | max | median CPU |",
+              "|---|---|---|---|---|---|---|", *rows, ""]
 
     if not TEXMETRICS_PY.exists():
         return "\n".join(lines + ["(texmetrics venv missing: no quality table)", ""])
-    table = ["| exemplar | px -> volume | worst coh_mean | 2D synth coh_mean | ratio | "
-             "worst coh_p95 | worst compl | worst hist | worst scale | s |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+    table = ["| exemplar | px -> volume | method | worst coh_mean | worst coh_p95 | "
+             "worst hist | worst scale | axis-energy | contrast | stripe | s |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     sizes = ((64, 64),) if quick else ((64, 64), (128, 128))
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
@@ -125,21 +137,24 @@ def run(quick: bool = False) -> str:
                 exemplar = _exemplar(name, ex_side)
                 ex_path = folder / f"{name}_{ex_side}.png"
                 write_image(ex_path, exemplar, 8)
-                walls, _, result = _time(exemplar, side, 1)
-                vol_path = folder / f"{name}_{side}.npy"
-                np.save(vol_path, result.voxels)
-                worst = _worst(_metrics(ex_path, vol_path))
-                flat = _worst(_synth_2d(ex_path, str(2 * ex_side), folder))
-                ratio = worst["coh_mean"] / flat["coh_mean"]
-                table.append(
-                    f"| {name} | {ex_side} -> {side}^3 | {worst['coh_mean']:.2f} | "
-                    f"{flat['coh_mean']:.2f} | {ratio:.2f} | {worst['coh_p95']:.2f} | "
-                    f"{worst['compl']:.2f} | {worst['hist']:.2f} | {worst['scale']:.2f} | "
-                    f"{walls[0]:.1f} |")
-                write_image(REPO / "docs" / f"solid_{name}_{side}.png",
-                            render_preview(result.voxels), 8)
-    lines += ["Quality (texmetrics.py, worst of the three slice axes; 2D: `osmap synth` on the "
-              "same exemplar at twice its size, same seed):", "", *table, ""]
+                for method in METHODS:
+                    walls, _, result = _time(exemplar, side, 1, method=method)
+                    vol_path = folder / f"{name}_{side}_{method}.npy"
+                    np.save(vol_path, result.voxels)
+                    worst = _worst(_metrics(ex_path, vol_path))
+                    look = _look(ex_path, vol_path)
+                    table.append(
+                        f"| {name} | {ex_side} -> {side}^3 | {method} | {worst['coh_mean']:.2f} | "
+                        f"{worst['coh_p95']:.2f} | {worst['hist']:.2f} | {worst['scale']:.2f} | "
+                        f"{look['worst_axis_ratio']:.2f} | {look['lowest_contrast_ratio']:.2f} | "
+                        f"{look['worst_stripe_ratio']:.2f} | {walls[0]:.1f} |")
+                    if method == "osmap":
+                        write_image(REPO / "docs" / f"solid_{name}_{side}.png",
+                                    render_preview(result.voxels), 8)
+    lines += ["Quality (texmetrics.py: worst of the three slice axes; solidlook.py: worst "
+              "axis-energy and stripe ratios, lowest contrast ratio), seed 1; methods: osmap "
+              "(default), kopf (`--method kopf`), legacy (the previous default, `--method "
+              "legacy` or `--preset legacy`):", "", *table, ""]
 
     reference = ["| exemplar | seen half (px) | unseen half: coh_mean (top / bottom seen) | "
                  "`osmap synth` from the seen half: coh_mean | ratio unseen / synth |",

@@ -138,6 +138,8 @@ def check_preset_value(where: str, value, spec: OptionSpec):
     if spec.kind is str:
         if not isinstance(value, str):
             raise OsmapError(f"{where} must be a string, got {value!r}")
+        if spec.choices and value not in spec.choices:
+            raise OsmapError(f"{where} = {value!r} is not one of {', '.join(spec.choices)}")
         return value
     if spec.kind is int:
         if isinstance(value, bool) or not isinstance(value, int):
@@ -184,6 +186,9 @@ def preset_toml(cls, table: str, name: str, description: str, values: dict,
     width = max(28, max(len(key) for key in specs) + 10)
     for key, spec in specs.items():
         value = values.get(key, getattr(defaults, key))
+        if spec.kind is str:
+            lines.append(f'{key} = "{value}"'.ljust(width) + f"# {', '.join(spec.choices)}")
+            continue
         text = number_text(float(value) if spec.kind is float else value)
         if spec.kind is float and "." not in text and "e" not in text:
             text += ".0"
@@ -196,6 +201,10 @@ def usage_rows(cls) -> list[str]:
     rows = []
     defaults = cls()
     for key, spec in tunables(cls).items():
+        if spec.kind is str:
+            rows.append(f"| `{flag(key)} M` | {getattr(defaults, key)} | "
+                        f"{', '.join(spec.choices)} | {spec.help} |")
+            continue
         metavar = "N" if spec.kind is int else "X"
         default = number_text(getattr(defaults, key))
         rows.append(f"| `{flag(key)} {metavar}` | {default} | {number_text(spec.lo)} to "

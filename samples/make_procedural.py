@@ -1,4 +1,5 @@
-"""Make the procedural colour sample exemplars: cells.png, cells_rgba.png and weave.png.
+"""Make the procedural colour sample exemplars: cells.png, cells_rgba.png, weave.png and the
+wood pair wood_side.png / wood_end.png.
 
 Needs only numpy and OpenImageIO; deterministic (fixed seeds, numpy's PCG64 generator). Run it
 from the repository root:
@@ -13,7 +14,16 @@ from the repository root:
                                      with a clear diagonal orientation, shaded threads, fibre
                                      streaks and slight noise.
 
-All three tile seamlessly (distances are measured on a torus and the weave repeat divides 128).
+* ``wood_side.png`` 128x128 RGB -- side grain: a slice along a log (growth rings cut lengthwise:
+                                     wavy light/dark grain lines along x, fine fibre streaks).
+* ``wood_end.png``  128x128 RGB  -- end grain of the same log: concentric rings (the log's axis
+                                     off the image, so arcs), same colours.
+* ``wood_top.png``  128x128 RGB  -- flat-sawn face of the same log (rings cut tangentially).
+  All three are slices of one procedural 3D wood function, so they are consistent: a block
+  with its grain along x is `osmap solid --x wood_end.png --y wood_side.png --z wood_top.png`.
+
+Cells and weave tile seamlessly (distances are measured on a torus and the weave repeat divides
+128); the wood pair does not tile.
 The images are made by the osmap project and released under CC0.
 """
 
@@ -132,6 +142,47 @@ def weave(size: int = 128, pitch: int = 8, seed: int = 3) -> np.ndarray:
     return np.clip(rgb, 0.0, 1.0)
 
 
+def _wood(x: np.ndarray, y: np.ndarray, z: np.ndarray, seed: int = 5) -> np.ndarray:
+    """RGB of a log whose axis runs along x through (y, z) = (64, -40), at the given points
+    (pixels): growth rings 7 px apart, wobbling slowly along the log and around it, darker
+    latewood at the end of each ring, fibre streaks along x."""
+    rng = np.random.default_rng(seed)
+    dy, dz = y - 64.0, z + 40.0
+    radius = np.hypot(dy, dz)
+    angle = np.arctan2(dz, dy)
+    wobble = np.zeros_like(radius)
+    for _ in range(6):  # slow, smooth perturbation of the ring radius
+        fx, fa = rng.uniform(0.005, 0.03), rng.integers(1, 5)
+        wobble += rng.uniform(0.6, 1.4) * np.sin(fx * 2 * np.pi * x + fa * angle
+                                                 + rng.uniform(0, 2 * np.pi))
+    phase = (radius + 0.7 * wobble) / 7.0
+    t = phase - np.floor(phase)
+    late = smoothstep(0.55, 0.8, t) * (1.0 - smoothstep(0.92, 1.0, t))
+    fibre = np.zeros_like(radius)
+    for _ in range(8):  # streaks: fast across the grain, slow along it
+        fr, fl = rng.uniform(0.15, 0.5), rng.uniform(0.002, 0.02)
+        fibre += np.sin(fr * 2 * np.pi * radius + fl * 2 * np.pi * x + rng.uniform(0, 6.3))
+    fibre /= 8.0
+    early = np.array([0.80, 0.62, 0.40])
+    dark = np.array([0.47, 0.29, 0.15])
+    rgb = early + late[..., None] * (dark - early)
+    rgb = rgb * (1.0 + 0.06 * fibre[..., None]) + rng.normal(0.0, 0.012, rgb.shape)
+    return np.clip(rgb, 0.0, 1.0)
+
+
+def wood_set(size: int = 128) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(side, end, top): three cuts of one block of the log, consistent with each other.
+    side: quarter-sawn, rows z, cols x in the plane y = 64 through the axis (grain lines along
+    the columns); end: rows z, cols y at x = 64 (arcs of the rings around the axis above the
+    image); top: flat-sawn, rows y, cols x at z = 64 (the rings cut tangentially: lines along x
+    whose spacing widens towards the middle)."""
+    rows, cols = np.mgrid[0:size, 0:size].astype(np.float64)
+    side = _wood(x=cols, y=np.full_like(rows, 64.0), z=rows)
+    end = _wood(x=np.full_like(rows, 64.0), y=cols, z=rows)
+    top = _wood(x=cols, y=rows, z=np.full_like(rows, 64.0))
+    return side, end, top
+
+
 def write_png(path: str, pixels: np.ndarray) -> None:
     """Write float pixels in [0, 1] as an 8-bit PNG (rounded), checking every OIIO call."""
     quantised = np.rint(np.clip(pixels, 0.0, 1.0) * 255.0).astype(np.uint8)
@@ -160,6 +211,11 @@ def main() -> int:
     write_png(os.path.join(HERE, "cells_rgba.png"), np.dstack([small, alpha]))
 
     write_png(os.path.join(HERE, "weave.png"), weave())
+
+    side, end, top = wood_set()
+    write_png(os.path.join(HERE, "wood_side.png"), side)
+    write_png(os.path.join(HERE, "wood_end.png"), end)
+    write_png(os.path.join(HERE, "wood_top.png"), top)
     return 0
 
 

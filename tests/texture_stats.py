@@ -101,3 +101,26 @@ def dominant_orientation(image: np.ndarray) -> float:
     gy, gx = np.gradient(gray)
     jxx, jyy, jxy = (gx * gx).sum(), (gy * gy).sum(), (gx * gy).sum()
     return float(np.degrees(0.5 * np.arctan2(2 * jxy, jxx - jyy)) % 180.0)
+
+
+def axis_energy_share(image: np.ndarray, degrees: float = 7.5) -> float:
+    """Share of the gradient energy (Sobel, on the channel mean) whose direction lies within
+    `degrees` of the grid axes. Isotropic material scores about 4 x 2 x degrees / 360 (0.17
+    for 7.5); rectangular chips, straight cuts between copies and 1-pixel stripes score more."""
+    grey = image[..., :3].mean(axis=2).astype(np.float64)
+    p = np.pad(grey, 1, mode="edge")
+    gx = ((p[:-2, 2:] + 2 * p[1:-1, 2:] + p[2:, 2:]) - (p[:-2, :-2] + 2 * p[1:-1, :-2]
+                                                         + p[2:, :-2]))
+    gy = ((p[2:, :-2] + 2 * p[2:, 1:-1] + p[2:, 2:]) - (p[:-2, :-2] + 2 * p[:-2, 1:-1]
+                                                         + p[:-2, 2:]))
+    energy = gx * gx + gy * gy
+    angle = np.degrees(np.arctan2(gy, gx)) % 90.0
+    near = (angle < degrees) | (angle > 90.0 - degrees)
+    return float(energy[near].sum() / max(energy.sum(), 1e-12))
+
+
+def axis_energy_ratio(exemplar: np.ndarray, images) -> float:
+    """Mean axis_energy_share of the images over the exemplar's (1: as axis-aligned as the
+    exemplar; boxy or stripy solid-texture slices score well above 1)."""
+    return float(np.mean([axis_energy_share(im) for im in images])
+                 / max(axis_energy_share(exemplar), 1e-12))

@@ -114,9 +114,13 @@ def tuning_flags(options_cls):
 
     def decorate(function):
         for name, spec in reversed(tunables(options_cls).items()):
+            if spec.kind is str:
+                kind, metavar = click.Choice(spec.choices), None
+            else:
+                kind = click.INT if spec.kind is int else click.FLOAT
+                metavar = "N" if spec.kind is int else "X"
             function = click.option(
-                flag(name), name, type=click.INT if spec.kind is int else click.FLOAT,
-                default=None, metavar="N" if spec.kind is int else "X",
+                flag(name), name, type=kind, default=None, metavar=metavar,
                 help=f"Tuning: {spec.help}. [default: from the preset]",
             )(function)
         return function

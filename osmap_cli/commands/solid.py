@@ -52,10 +52,15 @@ jobs at once; the bytes do not depend on N. --x/--y/--z make one volume.
 
 \b
 Every voxel holds three exemplar positions, one per slice family (slices
-normal to x, y and z), organised by an OS-Map on the coarsest volume and
-then optimised level by level so that the slices along all three axes
-match the exemplar; each voxel takes the colour most of its neighbours'
-matches agree on.
+normal to x, y and z). --method osmap (default): an OS-Map lays them out
+on the coarsest volume, then a texture optimisation (Kopf et al. 2007)
+runs level by level: every slice window finds its nearest exemplar
+window, every voxel takes a robust mean of the colours the windows of
+all three families place on it (at the coarser levels the densest
+colour cluster that two families agree on), and the colours are moved
+half way to the exemplar's histogram. --method kopf: the paper's
+optimisation as published (softer). --method legacy: the search + mode
+pipeline of earlier versions (boxier, paler).
 
 \b
 --x/--y/--z give one exemplar per slice family (Kopf et al. 2007): slices
@@ -83,9 +88,10 @@ and the index (0, 1, 2 = x, y, z exemplar) each voxel was copied from;
 osmap_cli.solid.render_volume(uv, maps) re-renders it on aligned maps.
 
 \b
-Presets (--preset): a built-in name ('osmap presets --solid' lists them), or
-a TOML file with a [solid] table of tunables (osmap solid does not read the
-[synth] presets). Tuning flags (--iterations, --seam, ...) override the
+Presets (--preset): a built-in name ('osmap presets --solid' lists them;
+"structured", "smooth" and "legacy" select the legacy method), or a TOML
+file with a [solid] table of tunables (osmap solid does not read the
+[synth] presets). Tuning flags (--method, --iterations, ...) override the
 preset; --quality fast|high scales the search on top.
 Memory: the working set is estimated first; a size that does not fit in
 the available memory (or in OSMAP_MEMORY_LIMIT, e.g. 2G) is refused.

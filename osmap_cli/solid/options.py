@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from osmap_cli.options import Options, option
 
 QUALITIES = ("fast", "default", "high")
+METHODS = ("osmap", "kopf", "legacy")
 MAX_SIDE = 1024
 
 
@@ -30,6 +31,11 @@ class SolidOptions(Options):
     tileable: bool = option(False, help="the volume wraps around in all three axes")
     quality: str = option("default", help="fast, default or high", choices=QUALITIES)
     # --- tunables (solid preset keys and tuning flags) ---
+    method: str = option("osmap", help="osmap: the OS-Map lays out the coarsest volume, then a "
+                         "sharpened Kopf optimisation; kopf: Kopf et al. 2007 texture "
+                         "optimisation as published (softer, features too large); legacy: the "
+                         "search + mode pipeline before issue 13 (boxy)", choices=METHODS,
+                         tunable=True)
     levels: int = option(4, 1, 8, "pyramid levels (the coarsest volume keeps >= 16 voxels a "
                          "side)", tunable=True)
     patch_radius: int = option(2, 1, 4, "in-plane matching window half-size", tunable=True)
@@ -73,6 +79,54 @@ class SolidOptions(Options):
     som_sigma_max: float = option(1.5, 0.1, 64.0, "OS-Map initial radius, voxels", tunable=True)
     som_anisotropy: float = option(0.25, 0.0, 1.0, "kernel weight across / along each component",
                                    tunable=True)
+
+    # --- methods osmap and kopf (texture optimisation, osmap_cli/solid/kopf.py) ---
+    kopf_window: int = option(8, 4, 16, "window side n of the slice neighbourhoods (n x n)",
+    tunable=True)
+    kopf_iterations: int = option(4, 1, 20, "search + optimisation iterations per level",
+    tunable=True)
+    kopf_r: float = option(0.8, 0.1, 2.0, "robust norm exponent r: IRLS weight = distance ** "
+                          "(r - 2)", tunable=True)
+    kopf_dims: int = option(24, 2, 64, "PCA dimensions of the window vectors (search space)",
+    tunable=True)
+    kopf_stride: int = option(2, 1, 4, "window centres every kopf_stride voxels in each plane",
+    tunable=True)
+    window_falloff: float = option(0.0, 0.0, 10.0, "method osmap: centre weighting of each "
+                                  "window's colours, exp(-falloff * d^2 / (n/2)^2) (kopf: flat "
+                                  "windows, as published)", tunable=True)
+    kopf_histogram: float = option(1.0, 0.0, 10.0, "method kopf: strength of the colour and "
+                                  "exemplar-position histogram weights (0: plain IRLS)",
+                                  tunable=True)
+    histogram_weight: float = option(3.0, 0.0, 10.0, "method osmap: the same strength (stronger "
+                                    "than kopf's: the sharpening favours the majority colour)",
+                                    tunable=True)
+    sharpen: int = option(3, 0, 20, "method osmap: the last `sharpen` iterations of every level "
+                         "give each voxel one exemplar colour (the best-agreeing window's)",
+                         tunable=True)
+    sharpen_levels: int = option(8, 0, 8, "method osmap: sharpen at the finest this many levels "
+                                "(the coarser ones average, as in Kopf et al.)", tunable=True)
+    sharpen_cross: int = option(1, 0, 1, "1: a proposal's density counts only the other two "
+                               "slice families' proposals (against 1-voxel stripes)", tunable=True)
+    sharpen_finest: int = option(0, 0, 1, "0: the finest level only averages (faster; the "
+                                "sharpened coarser levels set the structure)", tunable=True)
+    sharpen_final: int = option(0, 0, 1, "1: the finest level's last iteration is sharpened "
+                               "too; 0: the volume is its average (soft antialiased boundaries "
+                               "instead of pixel staircases)", tunable=True)
+    upsample_render: int = option(1, 0, 1, "method osmap: 1: each finer level starts from the "
+                                 "exemplar colours at the upsampled positions; 0: from the "
+                                 "coarser volume interpolated (Kopf)", tunable=True)
+    pick_support: int = option(1, 0, 4, "half-size of the in-plane area over which a window "
+                              "must agree with the averaged volume to be picked", tunable=True)
+    sharpen_bandwidth: float = option(0.25, 0.0, 10.0, "sharpening by mean shift: proposals "
+                                     "within this squared colour distance (relative to the "
+                                     "exemplar's colour variance) of the densest one are "
+                                     "averaged; 0: pick the best-agreeing window instead",
+                                     tunable=True)
+    sharpen_steps: int = option(0, 0, 20, "with sharpen_bandwidth: mean-shift steps from the "
+                               "weighted mean (Gaussian kernel) instead of the densest "
+                               "proposal's cluster; 0: densest", tunable=True)
+    final_histogram: float = option(0.5, 0.0, 1.0, "method osmap: how far the final colours are "
+                                   "moved to the exemplar's per-channel distribution", tunable=True)
 
     @property
     def shape(self) -> tuple[int, int, int]:

@@ -191,7 +191,7 @@ def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidRe
     """A volume like the exemplars: one float32 (h, w, C) image for every axis, or a list of
     three (x, y, z) with equal channel counts. `progress(fraction)` is called as levels finish.
     """
-    opts = options.validated().with_quality()
+    opts = options.validated().with_quality()  # validated: method is one of METHODS
     if len(exemplars) == 1:
         images, ex_of_axis = [exemplars[0]], np.zeros(3, np.int64)
     else:
@@ -206,6 +206,8 @@ def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidRe
     for _ in range(levels - 1):
         z, y, x = shapes[-1]
         shapes.append((half_size((z, y))[0], *half_size((y, x))))
+    if opts.method != "legacy":
+        return _synthesize_optimised(images, ex_of_axis, opts, pyramids, shapes, progress)
     r = opts.patch_radius
     work = [opts.coarse_iterations * 2] + [opts.iterations] * (levels - 1)
     total = float(sum(work))
@@ -285,3 +287,18 @@ def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidRe
     bparams = cparams._replace(bandwidth2=opts.blend * variance)
     return SolidResult(blend_render(pos, cost, feat_stack, full, ex_of_axis, source, bparams),
                        source)
+
+
+def _synthesize_optimised(images, ex_of_axis, opts, pyramids, shapes, progress):
+    """Methods osmap and kopf: texture optimisation (osmap_cli.solid.kopf); osmap starts from
+    the OS-Map's layout of the coarsest volume, kopf from random positions."""
+    from osmap_cli.solid import kopf
+
+    def organise_fn(shape, ex_shapes, lo, hi):
+        if opts.method != "osmap":
+            return None
+        return organise(shape, ex_shapes, ex_of_axis, lo, hi, opts, opts.seed)
+
+    voxels, source = kopf.optimise(images, ex_of_axis, opts, shapes, pyramids, _stack,
+                                   organise_fn, upsample_positions, upsample_linear, progress)
+    return SolidResult(voxels, source)
