@@ -165,6 +165,39 @@ def kopf_search(vol, pos, new_pos, dist, feats, basis, mean, ex_of_axis, knn, p)
                     dist[a, z, y, x] = best
 
 
+@njit(cache=True, inline="always")
+def _covering(z, y, x, pos, shape, n, s, wrap, cand):
+    """The windows of all three slice families that cover voxel (z, y, x), in a fixed order:
+    cand[j] = (axis, exemplar row and column of the voxel's pixel, window row and column, the
+    window centre's z, y, x); returns how many."""
+    h0 = n // 2
+    m = 0
+    for a in range(3):
+        vr = z if a < 2 else y
+        vc = y if a == 0 else x
+        for ir in range((vr + h0) % s, n, s):
+            dr = ir - h0
+            for ic in range((vc + h0) % s, n, s):
+                dc = ic - h0
+                cz, cy, cx = _at(z, y, x, a, -dr, -dc, shape, True)
+                if not _is_centre(cz, cy, cx, a, s):
+                    continue
+                if not wrap:
+                    oz, oy, ox = _at(z, y, x, a, -dr, -dc, shape, False)
+                    if oz != cz or oy != cy or ox != cx:
+                        continue
+                cand[m, 0] = a
+                cand[m, 1] = pos[a, cz, cy, cx, 0] + dr
+                cand[m, 2] = pos[a, cz, cy, cx, 1] + dc
+                cand[m, 3] = ir
+                cand[m, 4] = ic
+                cand[m, 5] = cz
+                cand[m, 6] = cy
+                cand[m, 7] = cx
+                m += 1
+    return m
+
+
 @njit(cache=True, parallel=True)
 def kopf_average(pos, centre_weight, images, ex_of_axis, pixel_weight, p, out, source):
     """Every voxel: the weighted mean of the exemplar colours that the windows of all three axes
@@ -174,41 +207,28 @@ def kopf_average(pos, centre_weight, images, ex_of_axis, pixel_weight, p, out, s
     nz, ny, nx = out.shape[0], out.shape[1], out.shape[2]
     shape = (nz, ny, nx)
     n = p.size
-    h0 = n // 2
     nc = out.shape[3]
     s = p.stride
+    most = 3 * (n // s + 1) * (n // s + 1)
     for z in prange(nz):
         acc = np.empty(nc, np.float64)
+        cand = np.empty((most, 8), np.int64)
         for y in range(ny):
             for x in range(nx):
                 acc[:] = 0.0
                 wsum = 0.0
                 wbest = -1.0
                 sa, sr, sc = 0, 0, 0
-                for a in range(3):
+                for j in range(_covering(z, y, x, pos, shape, n, s, p.wrap, cand)):
+                    a, er, ec = cand[j, 0], cand[j, 1], cand[j, 2]
                     e = ex_of_axis[a]
-                    vr = z if a < 2 else y
-                    vc = y if a == 0 else x
-                    for ir in range((vr + h0) % s, n, s):
-                        dr = ir - h0
-                        for ic in range((vc + h0) % s, n, s):
-                            dc = ic - h0
-                            cz, cy, cx = _at(z, y, x, a, -dr, -dc, shape, True)
-                            if not _is_centre(cz, cy, cx, a, s):
-                                continue
-                            if not p.wrap:
-                                oz, oy, ox = _at(z, y, x, a, -dr, -dc, shape, False)
-                                if oz != cz or oy != cy or ox != cx:
-                                    continue
-                            er = pos[a, cz, cy, cx, 0] + dr
-                            ec = pos[a, cz, cy, cx, 1] + dc
-                            w = (centre_weight[a, cz, cy, cx] * p.window[ir, ic]
-                                 * pixel_weight[e, er, ec])
-                            for ch in range(nc):
-                                acc[ch] += w * images[e, er, ec, ch]
-                            wsum += w
-                            if w > wbest:
-                                wbest, sa, sr, sc = w, a, er, ec
+                    w = (centre_weight[a, cand[j, 5], cand[j, 6], cand[j, 7]]
+                         * p.window[cand[j, 3], cand[j, 4]] * pixel_weight[e, er, ec])
+                    for ch in range(nc):
+                        acc[ch] += w * images[e, er, ec, ch]
+                    wsum += w
+                    if w > wbest:
+                        wbest, sa, sr, sc = w, a, er, ec
                 for ch in range(nc):
                     out[z, y, x, ch] = acc[ch] / wsum if wsum > 0 else 0.0
                 source[z, y, x, 0] = sa
@@ -225,50 +245,37 @@ def kopf_pick(pos, images, ex_of_axis, target, p, support, out, source):
     nz, ny, nx = out.shape[0], out.shape[1], out.shape[2]
     shape = (nz, ny, nx)
     n = p.size
-    h0 = n // 2
     nc = out.shape[3]
     s = p.stride
+    hgt = images.shape[1]
+    wid = images.shape[2]
+    most = 3 * (n // s + 1) * (n // s + 1)
     for z in prange(nz):
+        cand = np.empty((most, 8), np.int64)
         for y in range(ny):
             for x in range(nx):
                 best = np.inf
                 sa, sr, sc = 0, 0, 0
-                for a in range(3):
+                for j in range(_covering(z, y, x, pos, shape, n, s, p.wrap, cand)):
+                    a, er, ec = cand[j, 0], cand[j, 1], cand[j, 2]
                     e = ex_of_axis[a]
-                    hgt = images.shape[1]
-                    wid = images.shape[2]
-                    vr = z if a < 2 else y
-                    vc = y if a == 0 else x
-                    for ir in range((vr + h0) % s, n, s):
-                        dr = ir - h0
-                        for ic in range((vc + h0) % s, n, s):
-                            dc = ic - h0
-                            cz, cy, cx = _at(z, y, x, a, -dr, -dc, shape, True)
-                            if not _is_centre(cz, cy, cx, a, s):
+                    cost = 0.0
+                    wsum = 0.0
+                    for u in range(-support, support + 1):
+                        for v in range(-support, support + 1):
+                            rr = er + u
+                            cc = ec + v
+                            if rr < 0 or rr >= hgt or cc < 0 or cc >= wid:
                                 continue
-                            if not p.wrap:
-                                oz, oy, ox = _at(z, y, x, a, -dr, -dc, shape, False)
-                                if oz != cz or oy != cy or ox != cx:
-                                    continue
-                            er = pos[a, cz, cy, cx, 0] + dr
-                            ec = pos[a, cz, cy, cx, 1] + dc
-                            cost = 0.0
-                            wsum = 0.0
-                            for u in range(-support, support + 1):
-                                for v in range(-support, support + 1):
-                                    rr = er + u
-                                    cc = ec + v
-                                    if rr < 0 or rr >= hgt or cc < 0 or cc >= wid:
-                                        continue
-                                    qz, qy, qx = _at(z, y, x, a, u, v, shape, p.wrap)
-                                    g = 1.0 / (1.0 + u * u + v * v)
-                                    for ch in range(nc):
-                                        t = target[qz, qy, qx, ch] - images[e, rr, cc, ch]
-                                        cost += g * t * t
-                                    wsum += g
-                            cost /= wsum
-                            if cost < best:
-                                best, sa, sr, sc = cost, a, er, ec
+                            qz, qy, qx = _at(z, y, x, a, u, v, shape, p.wrap)
+                            g = 1.0 / (1.0 + u * u + v * v)
+                            for ch in range(nc):
+                                t = target[qz, qy, qx, ch] - images[e, rr, cc, ch]
+                                cost += g * t * t
+                            wsum += g
+                    cost /= wsum
+                    if cost < best:
+                        best, sa, sr, sc = cost, a, er, ec
                 e = ex_of_axis[sa]
                 for ch in range(nc):
                     out[z, y, x, ch] = images[e, sr, sc, ch]
@@ -339,7 +346,6 @@ def kopf_cluster(pos, centre_weight, images, ex_of_axis, pixel_weight, p, bandwi
     nz, ny, nx = out.shape[0], out.shape[1], out.shape[2]
     shape = (nz, ny, nx)
     n = p.size
-    h0 = n // 2
     nc = out.shape[3]
     s = p.stride
     most = 3 * (n // s + 1) * (n // s + 1)
@@ -349,35 +355,20 @@ def kopf_cluster(pos, centre_weight, images, ex_of_axis, pixel_weight, p, bandwi
         ids = np.empty((most, 3), np.int64)
         acc = np.empty(nc, np.float64)
         mode = np.empty(nc, np.float64)
+        cand = np.empty((most, 8), np.int64)
         for y in range(ny):
             for x in range(nx):
-                m = 0
-                for a in range(3):
+                m = _covering(z, y, x, pos, shape, n, s, p.wrap, cand)
+                for j in range(m):
+                    a, er, ec = cand[j, 0], cand[j, 1], cand[j, 2]
                     e = ex_of_axis[a]
-                    vr = z if a < 2 else y
-                    vc = y if a == 0 else x
-                    for ir in range((vr + h0) % s, n, s):
-                        dr = ir - h0
-                        for ic in range((vc + h0) % s, n, s):
-                            dc = ic - h0
-                            cz, cy, cx = _at(z, y, x, a, -dr, -dc, shape, True)
-                            if not _is_centre(cz, cy, cx, a, s):
-                                continue
-                            if not p.wrap:
-                                oz, oy, ox = _at(z, y, x, a, -dr, -dc, shape, False)
-                                if oz != cz or oy != cy or ox != cx:
-                                    continue
-                            er = pos[a, cz, cy, cx, 0] + dr
-                            ec = pos[a, cz, cy, cx, 1] + dc
-                            w = (centre_weight[a, cz, cy, cx] * p.window[ir, ic]
-                                 * pixel_weight[e, er, ec])
-                            for ch in range(nc):
-                                col[m, ch] = images[e, er, ec, ch]
-                            wts[m] = w
-                            ids[m, 0] = a
-                            ids[m, 1] = er
-                            ids[m, 2] = ec
-                            m += 1
+                    wts[j] = (centre_weight[a, cand[j, 5], cand[j, 6], cand[j, 7]]
+                              * p.window[cand[j, 3], cand[j, 4]] * pixel_weight[e, er, ec])
+                    for ch in range(nc):
+                        col[j, ch] = images[e, er, ec, ch]
+                    ids[j, 0] = a
+                    ids[j, 1] = er
+                    ids[j, 2] = ec
                 if steps > 0:
                     wsum = 0.0
                     acc[:] = 0.0
