@@ -75,10 +75,10 @@ def positions_jacobian(positions: np.ndarray, meta: dict) -> np.ndarray:
 def apply_image(uv: str, map_path: str, output: str, normal: bool | None,
                 bit_depth: str | None) -> str:
     """Render one 2D position map on one map and write it; returns the summary line."""
-    from osmap_cli import __version__
     from osmap_cli.imageio import encode_image, output_depth, read_image
     from osmap_cli.materials import render_map
     from osmap_cli.output import write_atomically
+    from osmap_cli.provenance import header
     from osmap_cli.synth.render import render_settings
 
     output_depth(output, bit_depth, 1, 8)  # path and --bit-depth checks before any work
@@ -112,8 +112,7 @@ def apply_image(uv: str, map_path: str, output: str, normal: bool | None,
     import shlex
 
     metadata = {
-        "software": f"osmap {__version__}", "osmap_version": __version__,
-        "command": "apply", "uv": os.path.basename(uv), "map": os.path.basename(map_path),
+        **header("apply"), "uv": os.path.basename(uv), "map": os.path.basename(map_path),
         "normal_map": str(is_normal).lower(), "args": shlex.join(args),
     }
     for key in ("exemplar", "exemplar_size", "preset", "seed", "options"):
@@ -161,19 +160,18 @@ def apply_volume(uv: str, maps: tuple[str, ...], output: str, normal: bool | Non
         if image.pixels.shape[2] != images[0].pixels.shape[2]:
             raise OsmapError(f"{p}: the maps must have the same channels")
     volume = np.asarray(render_volume(volume_uv.astype(np.float32), pixels), np.float32)
-    _write_volume(output, volume, {"command": "apply", "uv": os.path.basename(uv),
+    _write_volume(output, volume, {"uv": os.path.basename(uv),
                                    "map": " ".join(os.path.basename(p) for p in maps)})
 
 
 def _write_volume(output: str, volume: np.ndarray, metadata: dict) -> None:
-    from osmap_cli import __version__
-    from osmap_cli.output import write_atomically
+    from osmap_cli.output import check_parent, write_atomically
+    from osmap_cli.provenance import header
     from osmap_cli.solid import volumeio
 
-    if not os.path.isdir(os.path.dirname(os.path.abspath(output))):
-        raise OsmapError(f"{output}: output directory does not exist")
+    check_parent(output)
     fmt = "npy" if output.lower().endswith(".npy") else "nrrd"
-    meta = {"software": f"osmap {__version__}", "osmap_version": __version__, **metadata}
+    meta = {**header("apply"), **metadata}
     write, _ = volumeio.volume_writer(output, volume, fmt, depth=32, channel_names=None,
                                       metadata=meta)
     write_atomically(output, write)

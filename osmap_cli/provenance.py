@@ -20,7 +20,8 @@ import shlex
 
 from osmap_cli import __version__
 
-__all__ = ["image_metadata", "read_provenance", "reproduce_command", "synth_args"]
+__all__ = ["header", "image_metadata", "read_provenance", "reproduce_command", "synth_args",
+           "volume_metadata"]
 
 # the plain (not tunable) numeric flags written when they differ from their default
 _PLAIN = ("scale", "orientation", "anisotropy")
@@ -60,6 +61,12 @@ def synth_args(options, preset: str, preset_values: dict | None, bit_depth: int,
     return args
 
 
+def header(command: str) -> dict[str, str]:
+    """The first keys of every output's metadata: the software, its version and the command."""
+    return {"software": f"osmap {__version__}", "osmap_version": __version__,
+            "command": command}
+
+
 def image_metadata(options, preset: str, exemplar: str, exemplar_shape, args: list[str],
                    role: str = "image", extra: dict | None = None) -> dict[str, str]:
     """The metadata of one `osmap synth` output.
@@ -67,9 +74,7 @@ def image_metadata(options, preset: str, exemplar: str, exemplar_shape, args: li
     role: "image" (the main output), "with:NAME" (a --with map), or "uv" (--uv-out).
     """
     meta = {
-        "software": f"osmap {__version__}",
-        "osmap_version": __version__,
-        "command": "synth",
+        **header("synth"),
         "exemplar": os.path.basename(exemplar),
         "exemplar_size": f"{exemplar_shape[1]}x{exemplar_shape[0]}",
         "preset": preset,
@@ -80,6 +85,18 @@ def image_metadata(options, preset: str, exemplar: str, exemplar_shape, args: li
     }
     meta.update(extra or {})
     return meta
+
+
+def volume_metadata(options, preset: str, exemplars) -> dict[str, str]:
+    """The metadata of one `osmap solid` output (the keys of `osmap synth`'s that apply)."""
+    names = [os.path.basename(n) for n in exemplars]
+    return {
+        **header("solid"),
+        "exemplar": names[0] if len(set(names)) == 1 else ",".join(names),
+        "preset": preset,
+        "seed": str(options.seed),
+        "options": json.dumps(dataclasses.asdict(options), sort_keys=True),
+    }
 
 
 def reproduce_command(meta: dict[str, str], path: str) -> str | None:

@@ -7,37 +7,18 @@
 from __future__ import annotations
 
 import dataclasses
-import os
 from dataclasses import dataclass
 
 from osmap_cli.batch import Job
 from osmap_cli.errors import OsmapError
 
-__all__ = ["SolidJob", "default_name", "provenance"]
+__all__ = ["SolidJob", "default_name"]
 
 
 def default_name(kind: str) -> tuple[str, str]:
     """(default --name template, the {ext} field) for an output format."""
     ext = {"npy": "npy", "nrrd": "nrrd", "atlas": "png", "png": "png", "exr": "exr"}[kind]
     return ("{stem}" if kind in ("png", "exr") else "{stem}.{ext}"), ext
-
-
-def provenance(options, preset_name: str, exemplars) -> dict[str, str]:
-    """The metadata every output carries (the keys of `osmap synth`)."""
-    import json
-
-    from osmap_cli import __version__
-
-    names = [os.path.basename(n) for n in exemplars]
-    return {
-        "software": f"osmap {__version__}",
-        "osmap_version": __version__,
-        "command": "solid",
-        "exemplar": names[0] if len(set(names)) == 1 else ",".join(names),
-        "preset": preset_name,
-        "seed": str(options.seed),
-        "options": json.dumps(dataclasses.asdict(options), sort_keys=True),
-    }
 
 
 @dataclass(frozen=True)
@@ -119,12 +100,13 @@ class SolidJob(Job):
 
     def stage(self, outputs, images, result) -> tuple[str, list[str]]:
         from osmap_cli.imageio import encode_image
+        from osmap_cli.provenance import volume_metadata
         from osmap_cli.solid import volumeio
         from osmap_cli.solid.preview import render_preview
 
         options = self.options
         names = list(self.files) if len(self.files) == 3 else [self.files[0]]
-        metadata = provenance(options, self.preset, names)
+        metadata = volume_metadata(options, self.preset, names)
         depth = 16 if max(im.bit_depth for im in images) >= 16 else 8
         write, folder = volumeio.volume_writer(
             self.output, result.voxels, self.kind, depth=depth,
