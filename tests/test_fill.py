@@ -264,3 +264,18 @@ def test_tileable_batch_same_bytes_any_threads(material, osmap_exe, tmp_path):
         assert run.returncode == 0, run.stderr
         outputs.append(path.read_bytes())
     assert outputs[0] == outputs[1] == (tmp_path / "batch" / "img.png").read_bytes()
+
+
+def test_fill_help_lists_the_flags_that_apply(run_cli, repo_root):
+    from osmap_cli.commands.fill_common import OSMAP_ONLY
+    from osmap_cli.options import flag, tunables
+    from osmap_cli.synth.options import SynthOptions
+
+    usage = (repo_root / "docs" / "usage.md").read_text()
+    for command, own in (("inpaint", "--mask"), ("tileable", "--border")):
+        result = run_cli(command, "--help")
+        assert result.code == 0
+        text = " ".join(result.out.split())
+        assert own in text and f"osmap {command} " in text and own in usage
+        for name in tunables(SynthOptions):
+            assert (flag(name) in text) == (name not in OSMAP_ONLY), (command, name)

@@ -8,8 +8,8 @@ bands of a photo so that it tiles. One engine for both (osmap_cli.synth.constrai
        including the kept pixels around them, so the fill continues the surrounding structure
     -> render the free pixels (seam blending), keep every other pixel bit for bit.
 
->>> result = fill(image, hole, SynthOptions(seed=1), source_free=False)   # inpaint
->>> result = fill(photo, bands, SynthOptions(tileable=True), source_free=True)   # tileable
+    inpaint(image, hole, SynthOptions(seed=1))      # hole: bool (H, W), True = fill
+    make_tileable(photo, border=16)                 # the bands along the edges, wrapping
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from osmap_cli.texture.features import appearance_features
 from osmap_cli.texture.levels import level_count
 from osmap_cli.texture.pyramid import build_pyramid
 
-__all__ = ["border_bands", "fill", "match_border", "render_fill"]
+__all__ = ["border_bands", "fill", "inpaint", "make_tileable", "match_border", "render_fill"]
 
 # the border correction of a hole fades out over this many pixels
 BORDER_FADE = 6
@@ -46,6 +46,27 @@ def border_bands(shape, border: int) -> np.ndarray:
     free[:border] = free[-border:] = True
     free[:, :border] = free[:, -border:] = True
     return free
+
+
+def inpaint(image: np.ndarray, mask: np.ndarray, options: SynthOptions | None = None,
+            progress=None) -> SynthResult:
+    """image (H, W, C) with the pixels where mask (bool (H, W)) is True synthesized from the
+    others, which are kept bit for bit (`osmap inpaint`)."""
+    return fill(image, mask, (options or SynthOptions()).replace(tileable=False),
+                source_free=False, progress=progress)
+
+
+def make_tileable(image: np.ndarray, border: int = 0, options: SynthOptions | None = None,
+                  progress=None) -> SynthResult:
+    """image (H, W, C) made to tile: the bands within `border` pixels of an edge (0: an eighth
+    of the shorter side, at least 8) synthesized again, wrapping around; the centre kept bit
+    for bit (`osmap tileable`)."""
+    from osmap_cli.synth.options import FillOptions
+
+    band = FillOptions(border=border).validated().band(np.shape(image)[:2])
+    return fill(image, border_bands(np.shape(image)[:2], band),
+                (options or SynthOptions()).replace(tileable=True), source_free=True,
+                progress=progress)
 
 
 def _check(image: np.ndarray, free: np.ndarray, opts: SynthOptions) -> None:
@@ -103,6 +124,11 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
         level_shape = hole.shape
         jac_field = np.broadcast_to(jac.astype(np.float32), (*level_shape, 2, 2)).copy()
         lo, hi = valid_box(level_shape, jac, opts.patch_radius)
+        if source_free and level > 0:
+            # the bands may continue the kept centre up to the image's edge (windows there read
+            # edge-replicated pixels) at the coarse levels, where the bands are a pixel or two
+            # wide: else they could only copy from elsewhere and cut a seam along the centre
+            lo, hi = np.zeros(2), np.array(level_shape, np.float64) - 1
         forbidden = np.zeros(level_shape, bool)
         if not source_free:
             reach = opts.patch_radius + 1 if level else max(opts.patch_radius + 1, opts.blend)
@@ -112,7 +138,11 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
         known = identity_positions(level_shape)
         if pos is None:
             pos = known.copy()
-            pos[hole] = _random_allowed(rng, int(hole.sum()), ~forbidden, lo, hi)
+            if source_free:
+                pos[..., 0] = np.clip(pos[..., 0], lo[0], hi[0])
+                pos[..., 1] = np.clip(pos[..., 1], lo[1], hi[1])
+            else:
+                pos[hole] = _random_allowed(rng, int(hole.sum()), ~forbidden, lo, hi)
             advance(1)
             sweeps = opts.coarse_sweeps
         else:
