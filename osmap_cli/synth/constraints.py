@@ -27,6 +27,7 @@ class LevelConstraint:
     pinned: np.ndarray
     known: np.ndarray
     forbidden: np.ndarray
+    usage_scale: float = 1.0  # occupancy times this (an atlas: the share that is exemplar)
 
     def pin(self, pos: np.ndarray) -> np.ndarray:
         """pos with the pinned pixels at their known positions (pos is modified)."""
@@ -38,6 +39,8 @@ class LevelConstraint:
         forbidden positions, unchanged elsewhere (lam 0: occ 0 elsewhere, lam 1)."""
         if not self.forbidden.any():
             return occ, lam
+        if self.usage_scale != 1.0:
+            occ = occ * np.float32(self.usage_scale)
         if lam == 0.0:
             occ, lam = np.zeros_like(occ), 1.0
         return np.where(self.forbidden, np.float32(np.inf), occ).astype(np.float32), lam
