@@ -37,7 +37,7 @@ __all__ = ["border_bands", "fill", "inpaint", "make_tileable", "match_border", "
 # the border correction of a hole fades out over this many pixels
 BORDER_FADE = 6
 # ... and is averaged along the border over this many pixels either side
-BORDER_SPAN = 4
+BORDER_SPAN = 2
 
 
 def border_bands(shape, border: int) -> np.ndarray:
