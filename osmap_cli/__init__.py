@@ -12,6 +12,16 @@ A texture like an exemplar (float pixels (H, W, C) in [0, 1]):
 >>> result.pixels.shape, result.positions.shape
 ((40, 48, 3), (40, 48, 2))
 
+Fill a hole from the rest of an image, or make a photo tile (the other pixels kept bit for bit):
+
+>>> hole = np.zeros((32, 32), bool)
+>>> hole[12:20, 10:22] = True
+>>> filled = osmap.inpaint(exemplar, hole, osmap.SynthOptions(seed=1))
+>>> bool((filled.pixels[~hole] == exemplar[~hole]).all())
+True
+>>> osmap.make_tileable(exemplar, border=6).pixels.shape
+(32, 32, 3)
+
 A solid texture whose slices along x, y and z look like it (one exemplar per axis or one for all):
 
 >>> volume = osmap.synthesize_solid([exemplar], osmap.SolidOptions(width=16, height=16,
@@ -46,6 +56,8 @@ _API = {
     "synthesize": ("osmap_cli.synth.pipeline", "synthesize"),
     "SynthOptions": ("osmap_cli.synth.options", "SynthOptions"),
     "SynthResult": ("osmap_cli.synth.pipeline", "SynthResult"),
+    "inpaint": ("osmap_cli.synth.fill", "inpaint"),
+    "make_tileable": ("osmap_cli.synth.fill", "make_tileable"),
     "synthesize_solid": ("osmap_cli.solid.pipeline", "synthesize_solid"),
     "SolidOptions": ("osmap_cli.solid.options", "SolidOptions"),
     "SolidResult": ("osmap_cli.solid.pipeline", "SolidResult"),

@@ -37,6 +37,10 @@ EXIT_INTERRUPTED = 130
 # module is imported only when it runs or its --help is shown.
 LAZY_COMMANDS: dict[str, tuple[str, str, str]] = {
     "synth": ("osmap_cli.commands.synth", "synth_command", "Synthesize a texture."),
+    "inpaint": ("osmap_cli.commands.inpaint", "inpaint_command",
+                "Fill a masked region of an image."),
+    "tileable": ("osmap_cli.commands.tileable", "tileable_command",
+                 "Make a photo tile seamlessly."),
     "solid": ("osmap_cli.commands.solid", "solid_command",
               "Synthesize a solid (3D) texture from a 2D exemplar."),
     "apply": ("osmap_cli.commands.apply", "apply_command",
@@ -50,7 +54,7 @@ LAZY_COMMANDS: dict[str, tuple[str, str, str]] = {
 }
 
 # The order of `osmap --help`'s command list.
-COMMAND_ORDER = ("synth", "solid", "apply", "info", "surface", "presets")
+COMMAND_ORDER = ("synth", "inpaint", "tileable", "solid", "apply", "info", "surface", "presets")
 
 CONTEXT_SETTINGS = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
 

@@ -20,8 +20,8 @@ import shlex
 
 from osmap_cli import __version__
 
-__all__ = ["header", "image_metadata", "read_provenance", "reproduce_command", "synth_args",
-           "volume_metadata"]
+__all__ = ["fill_args", "header", "image_metadata", "read_provenance", "reproduce_command",
+           "synth_args", "volume_metadata"]
 
 # the plain (not tunable) numeric flags written when they differ from their default
 _PLAIN = ("scale", "orientation", "anisotropy")
@@ -61,6 +61,14 @@ def synth_args(options, preset: str, preset_values: dict | None, bit_depth: int,
     return args
 
 
+def fill_args(options, preset: str, preset_values: dict | None, bit_depth: int,
+              more: list[str]) -> list[str]:
+    """Canonical `osmap inpaint` / `osmap tileable` flags: synth_args' without --size and
+    --tileable (the image sets them), then MORE (--mask NAME, --border N)."""
+    args = synth_args(options, preset, preset_values, bit_depth)[2:]
+    return [a for a in args if a != "--tileable"] + list(more)
+
+
 def header(command: str) -> dict[str, str]:
     """The first keys of every output's metadata: the software, its version and the command."""
     return {"software": f"osmap {__version__}", "osmap_version": __version__,
@@ -68,13 +76,14 @@ def header(command: str) -> dict[str, str]:
 
 
 def image_metadata(options, preset: str, exemplar: str, exemplar_shape, args: list[str],
-                   role: str = "image", extra: dict | None = None) -> dict[str, str]:
-    """The metadata of one `osmap synth` output.
+                   role: str = "image", extra: dict | None = None,
+                   command: str = "synth") -> dict[str, str]:
+    """The metadata of one `osmap synth` output (or `osmap COMMAND`: inpaint, tileable).
 
     role: "image" (the main output), "with:NAME" (a --with map), or "uv" (--uv-out).
     """
     meta = {
-        **header("synth"),
+        **header(command),
         "exemplar": os.path.basename(exemplar),
         "exemplar_size": f"{exemplar_shape[1]}x{exemplar_shape[0]}",
         "preset": preset,
@@ -105,7 +114,7 @@ def reproduce_command(meta: dict[str, str], path: str) -> str | None:
     args = shlex.split(meta.get("args", ""))
     if command == "apply" and meta.get("uv") and meta.get("map"):
         return shlex.join(["osmap", "apply", meta["uv"], meta["map"], "-o", path, *args])
-    if command not in ("synth", "solid") or "args" not in meta:
+    if command not in ("synth", "solid", "inpaint", "tileable") or "args" not in meta:
         return None
     inputs = shlex.split(meta["inputs"]) if "inputs" in meta else [meta.get("exemplar", "")]
     role = meta.get("role", "image")

@@ -107,13 +107,16 @@ def cluster_spec(scheduler, scheduler_file, threads, jobs: int):
                                threads=threads or 1)
 
 
-def tuning_flags(options_cls):
+def tuning_flags(options_cls, skip=()):
     """A decorator adding one --flag per tunable of OPTIONS_CLS (default: the preset's value),
-    made from the option declarations (osmap_cli.options)."""
+    made from the option declarations (osmap_cli.options); SKIP: names of tunables the command
+    does not use."""
     from osmap_cli.options import flag, tunables
 
     def decorate(function):
         for name, spec in reversed(tunables(options_cls).items()):
+            if name in skip:
+                continue
             if spec.kind is str:
                 kind, metavar = click.Choice(spec.choices), None
             else:

@@ -102,6 +102,7 @@ Examples:
   ls samples/*.png | osmap synth - --out-dir out/batch --json --size 128 > jobs.jsonl
   osmap synth rock.png -o out/rock.png --with normal=rock_normal.png --with rock_rough.png
   osmap synth samples/weave.png -o out/weave_knot.png --orientation-field knot.png
+  osmap synth rock_a.png --also rock_b.png --also rock_c.png -o out/rock.png
 """
 
 
@@ -183,6 +184,10 @@ Examples:
     '(column, x) and "v" (row, y) in exemplar pixels. With --out-dir: a name template '
     "(e.g. '{stem}_uv.exr') in DIR.",
 )
+@click.option("--also", "also", multiple=True, type=click.Path(path_type=str), metavar="EX",
+              help="Another exemplar of the same material (same channels): the output draws "
+              "from all of them. Repeatable; {stem} {name} {dir} refer to each EXEMPLAR. Not "
+              "with --with, --uv-out, control fields or --method paper.")
 @click.option("-q", "--quiet", is_flag=True,
               help="No progress bar, no summary line, no warnings (errors are still shown).")
 @tuning_flags(SynthOptions)
@@ -193,8 +198,8 @@ def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str |
                   scale: float, orientation: float, anisotropy: float,
                   orientation_field: str | None, scale_field: str | None, tileable: bool,
                   quality: str, method: str, bit_depth: str | None,
-                  with_maps: tuple[str, ...], uv_out: str | None, quiet: bool,
-                  **tuning) -> int:
+                  with_maps: tuple[str, ...], uv_out: str | None, also: tuple[str, ...],
+                  quiet: bool, **tuning) -> int:
     # 1. preset and options (no image work yet)
     cluster = cluster_spec(scheduler, scheduler_file, threads, jobs)
     loaded = load_preset(preset, "synth")
@@ -208,6 +213,7 @@ def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str |
     )
     if (orientation_field or scale_field) and method != "osmap":
         raise click.UsageError("--orientation-field and --scale-field need --method osmap")
+    _check_also(also, with_maps, uv_out, orientation_field or scale_field, method)
 
     # 2. the inputs and where their outputs go
     from osmap_cli.materials import parse_with
@@ -229,8 +235,12 @@ def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str |
     preset_values = None if is_preset_path(preset) else dict(loaded.values)
     plans = _plan_outputs(inputs, output, out_dir, name_template, uv_out, withs, options,
                           preset_name, bit_depth, overwrite)
+    from osmap_cli.materials import expand_path
+
+    extra = {exemplar: tuple(expand_path(a, exemplar) for a in also) for exemplar in inputs}
     input_paths = real_paths([*inputs, *(spec.path for _, _, ws, _ in plans for spec, _ in ws),
-                              orientation_field, scale_field])
+                              orientation_field, scale_field,
+                              *(p for paths in extra.values() for p in paths)])
     job_list = []
     for index, (exemplar, main, maps, uv) in enumerate(plans, 1):
         refused = refusal([main, *(o for _, o in maps), *([uv] if uv else [])], input_paths)
@@ -239,11 +249,23 @@ def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str |
             preset_values=preset_values, bit_depth=bit_depth, uv_out=uv,
             withs=tuple(maps),
             orientation_field=orientation_field, scale_field=scale_field,
-            replace=output is not None or overwrite, refused=refused,
+            also=extra[exemplar], replace=output is not None or overwrite, refused=refused,
             progress=show_progress(quiet, jobs),
             quiet=quiet, label="osmap synth" if len(plans) == 1 else os.path.basename(exemplar),
         ))
     return run_batch(job_list, jobs, fail_fast, json_lines, quiet, cluster)
+
+
+def _check_also(also, with_maps, uv_out, fields, method) -> None:
+    """--also combines with neither --with, --uv-out, control fields nor --method paper."""
+    if not also:
+        return
+    for given, flag in ((with_maps, "--with"), (uv_out, "--uv-out"),
+                        (fields, "--orientation-field/--scale-field"),
+                        (method != "osmap", "--method paper")):
+        if given:
+            raise click.UsageError(f"--also does not combine with {flag} (the positions of "
+                                   "several exemplars have no single exemplar to refer to)")
 
 
 def _check_size(size: tuple[int, int]) -> None:

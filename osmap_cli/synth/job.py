@@ -22,6 +22,20 @@ UV_DESCRIPTION = ("u = exemplar column (x), v = exemplar row (y), in exemplar pi
                   "(0, 0) is the centre of the top-left exemplar pixel")
 
 
+def read_also(paths, image, exemplar: str) -> tuple:
+    """The --also exemplars, each with the main exemplar's channel count."""
+    from osmap_cli.imageio import read_image
+
+    out = []
+    for path in paths:
+        other = read_image(path)
+        if other.pixels.shape[2] != image.pixels.shape[2]:
+            raise OsmapError(f"{path}: {other.pixels.shape[2]} channels, but {exemplar} has "
+                             f"{image.pixels.shape[2]} (--also exemplars need the same)")
+        out.append(other)
+    return tuple(out)
+
+
 def _refuse_jpeg_channels(path: str, names) -> None:
     if os.path.splitext(path)[1].lower() in (".jpg", ".jpeg") and len(names) in (2, 4) \
             and names[-1] != "A":
@@ -34,6 +48,7 @@ class _Inputs:
     image: object  # osmap_cli.imageio.Image
     maps: list  # [(WithMap, output path, Image)]
     fields: object  # osmap_cli.fields.ControlFields or None
+    also: tuple = ()  # Images of --also
 
 
 @dataclass(frozen=True)
@@ -51,6 +66,7 @@ class SynthJob(Job):
     withs: tuple = ()  # ((WithMap with the path filled in, output path), ...)
     orientation_field: str | None = None
     scale_field: str | None = None
+    also: tuple = ()  # more exemplars of the same material (--also)
     replace: bool = True  # False: an existing output makes the job "skipped"
     refused: str | None = None  # why the job must not run (an output would replace an input)
     progress: bool = False
@@ -64,9 +80,12 @@ class SynthJob(Job):
 
     def describe(self) -> dict:
         opts = self.options
-        return {"input": self.exemplar, "outputs": self.outputs,
-                "size": [opts.width, opts.height], "seed": opts.seed,
-                "options": {"preset": self.preset, **dataclasses.asdict(opts)}}
+        record = {"input": self.exemplar, "outputs": self.outputs,
+                  "size": [opts.width, opts.height], "seed": opts.seed,
+                  "options": {"preset": self.preset, **dataclasses.asdict(opts)}}
+        if self.also:
+            record["also"] = list(self.also)
+        return record
 
     def read(self) -> _Inputs:
         from osmap_cli.fields import load_fields
@@ -78,6 +97,8 @@ class SynthJob(Job):
                 for spec, path in self.withs]
         fields = load_fields(self.orientation_field, self.scale_field,
                              (self.options.height, self.options.width), self.options.scale)
+        if self.also:
+            return _Inputs(image, maps, fields, read_also(self.also, image, self.exemplar))
         return _Inputs(image, maps, fields)
 
     def check(self, inputs: _Inputs) -> None:
@@ -99,6 +120,11 @@ class SynthJob(Job):
         from osmap_cli.progress import ProgressBar
 
         with ProgressBar(enabled=self.progress, desc=self.label) as progress:
+            if inputs.also:
+                from osmap_cli.synth.atlas import synthesize_several
+
+                exemplars = [inputs.image.pixels, *(a.pixels for a in inputs.also)]
+                return synthesize_several(exemplars, self.options, progress=progress)
             extra = {"fields": inputs.fields} if inputs.fields is not None else {}
             return synth.synthesize(inputs.image.pixels, self.options, progress=progress,
                                     **extra)
@@ -115,6 +141,10 @@ class SynthJob(Job):
         args = synth_args(options, self.preset, self.preset_values, depth,
                           self.orientation_field, self.scale_field)
         fields_meta = {}
+        if self.also:
+            names = [os.path.basename(a) for a in self.also]
+            args += [arg for name in names for arg in ("--also", name)]
+            fields_meta["also"] = ",".join(names)
         if self.orientation_field:
             fields_meta["orientation_field"] = os.path.basename(self.orientation_field)
         if self.scale_field:

@@ -106,3 +106,20 @@ class SynthOptions(Options):
         inverse_xy = np.linalg.inv(forward_xy)
         swap = np.array([[0.0, 1.0], [1.0, 0.0]])
         return swap @ inverse_xy @ swap
+
+
+@dataclass(frozen=True)
+class FillOptions(Options):
+    """What `osmap inpaint` and `osmap tileable` add to the synthesis options."""
+
+    border: int = option(0, 0, 4096, "width of the re-synthesized bands along the edges, pixels "
+                         "(0: an eighth of the shorter side, at least 8)")
+
+    def band(self, shape) -> int:
+        """The band width for an image of `shape` (h, w); OsmapError when it leaves no centre."""
+        widest = (min(shape) - 1) // 2
+        border = self.border or max(8, min(shape) // 8)
+        if widest < 1 or border > widest:
+            raise OsmapError(f"--border {border}: too wide for a {shape[1]}x{shape[0]} image "
+                             f"(allowed 1 to {max(widest, 1)})")
+        return border

@@ -40,9 +40,12 @@ def component_orientation(jac: np.ndarray, anisotropy: float) -> Orientation:
 
 
 def organise(exemplar_shape, out_shape, jac, lo, hi, opts: SynthOptions, *, wrap: bool,
-             seed: int, progress=None) -> np.ndarray:
-    """float32 (H, W, 2) position field over the output grid `out_shape`."""
+             seed: int, progress=None, allowed=None) -> np.ndarray:
+    """float32 (H, W, 2) position field over the output grid `out_shape`; `allowed` (bool
+    (h, w), optional): train on those exemplar positions only (an atlas of several)."""
     data = exemplar_positions(lo, hi)
+    if allowed is not None:
+        data = data[allowed[data[:, 0].astype(int), data[:, 1].astype(int)]]
     som = OSMap(out_shape, 2, wrap=(wrap, wrap),
                 window=search_window(exemplar_shape, out_shape, jac, opts.window_scale),
                 orientation=component_orientation(jac, opts.som_anisotropy),

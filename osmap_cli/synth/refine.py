@@ -24,8 +24,11 @@ MAX_KNN_REFERENCES = 2048
 
 def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, sweeps: int,
            opts: SynthOptions, *, wrap: bool, seed: int, salt: int, level_scale: int = 1,
-           coarsest_scale: int = 1, progress=None) -> np.ndarray:
-    """`sweeps` red-black coherence sweeps over pos (H, W, 2); returns the new field."""
+           coarsest_scale: int = 1, progress=None, constraint=None) -> np.ndarray:
+    """`sweeps` red-black coherence sweeps over pos (H, W, 2); returns the new field.
+
+    `constraint` (osmap_cli.synth.constraints.LevelConstraint, optional) pins some pixels to
+    known positions and forbids some exemplar positions (inpainting, tileable photos)."""
     knn = similar_positions(feat, lo, hi, opts.knn, MAX_KNN_REFERENCES)
     if opts.knn == 0:
         knn = knn[:, :, :0]
@@ -38,24 +41,30 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
     area = np.zeros(pos.shape[:2], np.float32)
     for sweep in range(sweeps):
         occ = occupancy(usage_counts(pos, *feat.shape[:2]), pos.shape[0] * pos.shape[1])
+        lam = float(opts.occupancy)
+        if constraint is not None:
+            occ, lam = constraint.penalise(occ, lam)
         for parity in (0, 1):
             params = RefineParams(
-                radius=opts.patch_radius, lam=float(opts.occupancy), wrap=wrap,
+                radius=opts.patch_radius, lam=lam, wrap=wrap,
                 lo=np.asarray(lo, np.float64), hi=np.asarray(hi, np.float64),
                 n_random=opts.random_candidates, seed=np.uint64(seed),
                 salt=np.uint64(salt * 1000 + sweep * 2 + parity), parity=parity,
                 seam=seam, max_area=float(max_area))
             if math.isfinite(max_area):
-                area = copy_region_areas(pos, jac_field, wrap)
+                area = copy_region_areas(pos if constraint is None else constraint.unlinked(pos),
+                                         jac_field, wrap)
             out = pos.copy()
             refine_pass(pos, out, feat, jac_field, knn, occ, area, params)
-            pos = out
+            pos = out if constraint is None else constraint.pin(out)
         if opts.align > 0 and sweep < sweeps - 1:
             # the last sweep settles the borders of the copies' final placement
             pos = align_regions(pos, feat, jac_field, AlignParams(
                 radius=ALIGN_RADIUS, wrap=wrap, lo=np.asarray(lo, np.float64),
                 hi=np.asarray(hi, np.float64), seam=seam, max_area=float(max_area),
                 reach=align_reach(opts.align, level_scale, coarsest_scale)))
+            if constraint is not None:
+                pos = constraint.pin(pos)
         if progress is not None:
             progress(1)
     return pos

@@ -1,0 +1,233 @@
+"""Fill part of an image from the rest of it: inpainting a hole and re-synthesizing the border
+bands of a photo so that it tiles. One engine for both (osmap_cli.synth.constraints):
+
+    pyramid of the image (the hole pre-filled smoothly, for the features only)
+    -> coarsest level: the kept pixels pinned to their own positions, the free ones at random
+       allowed positions (measured: better than an OS-Map layout, which the kept pixels
+       constrain anyway) -> coherence sweeps at every level, the free pixels' matching windows
+       including the kept pixels around them, so the fill continues the surrounding structure
+    -> render the free pixels (seam blending), keep every other pixel bit for bit.
+
+    inpaint(image, hole, SynthOptions(seed=1))      # hole: bool (H, W), True = fill
+    make_tileable(photo, border=16)                 # the bands along the edges, wrapping
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from osmap_cli.errors import OsmapError
+from osmap_cli.synth.constraints import (
+    LevelConstraint,
+    dilate,
+    identity_positions,
+    mask_pyramid,
+    push_pull,
+)
+from osmap_cli.synth.options import SynthOptions
+from osmap_cli.synth.pipeline import MIN_LEVEL_SIZE, SynthResult, valid_box
+from osmap_cli.synth.refine import refine, upsample
+from osmap_cli.synth.render import render
+from osmap_cli.texture.features import appearance_features
+from osmap_cli.texture.levels import level_count
+from osmap_cli.texture.pyramid import build_pyramid
+
+__all__ = ["border_bands", "fill", "inpaint", "make_tileable", "match_border", "render_fill"]
+
+# the border correction of a hole fades out over this many pixels
+BORDER_FADE = 6
+# ... and is averaged along the border over this many pixels either side
+BORDER_SPAN = 2
+
+
+def border_bands(shape, border: int) -> np.ndarray:
+    """bool (H, W): the pixels closer than `border` to an edge (what `tileable` re-synthesizes)."""
+    free = np.zeros(shape, bool)
+    free[:border] = free[-border:] = True
+    free[:, :border] = free[:, -border:] = True
+    return free
+
+
+def inpaint(image: np.ndarray, mask: np.ndarray, options: SynthOptions | None = None,
+            progress=None) -> SynthResult:
+    """image (H, W, C) with the pixels where mask (bool (H, W)) is True synthesized from the
+    others, which are kept bit for bit (`osmap inpaint`)."""
+    return fill(image, mask, (options or SynthOptions()).replace(tileable=False),
+                source_free=False, progress=progress)
+
+
+def make_tileable(image: np.ndarray, border: int = 0, options: SynthOptions | None = None,
+                  progress=None) -> SynthResult:
+    """image (H, W, C) made to tile: the bands within `border` pixels of an edge (0: an eighth
+    of the shorter side, at least 8) synthesized again, wrapping around; the centre kept bit
+    for bit (`osmap tileable`)."""
+    from osmap_cli.synth.options import FillOptions
+
+    band = FillOptions(border=border).validated().band(np.shape(image)[:2])
+    return fill(image, border_bands(np.shape(image)[:2], band),
+                (options or SynthOptions()).replace(tileable=True), source_free=True,
+                progress=progress)
+
+
+def _check(image: np.ndarray, free: np.ndarray, opts: SynthOptions) -> None:
+    if free.shape != image.shape[:2]:
+        raise ValueError(f"mask {free.shape} and image {image.shape[:2]} differ in size")
+    if opts.method != "osmap" or (opts.scale, opts.orientation, opts.anisotropy) != (1, 0, 1):
+        raise ValueError("fill keeps the image's own scale: method osmap, scale 1, "
+                         "orientation 0, anisotropy 1")
+    if not free.any():
+        raise OsmapError("the mask selects no pixel to fill")
+    if free.all():
+        raise OsmapError("the mask selects every pixel: nothing is left to fill from")
+
+
+def _random_allowed(rng, count: int, allowed: np.ndarray, lo, hi) -> np.ndarray:
+    """count (row, col) positions drawn uniformly from the allowed pixels inside [lo, hi]."""
+    box = np.zeros_like(allowed)
+    box[int(np.ceil(lo[0])):int(hi[0]) + 1, int(np.ceil(lo[1])):int(hi[1]) + 1] = True
+    choices = np.argwhere(allowed & box)
+    if len(choices) == 0:
+        choices = np.argwhere(box)
+    return choices[rng.integers(0, len(choices), count)].astype(np.float32)
+
+
+def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_free: bool,
+         progress=None) -> SynthResult:
+    """image float32 (H, W, C) with the `free` pixels (bool (H, W)) synthesized from the others.
+
+    source_free: may the free pixels' own content be copied (True for tileable bands, whose
+    content is real; False for a hole, whose content is unknown). options.tileable makes the
+    output wrap around. The size is the image's; the kept pixels come back bit for bit.
+    """
+    opts = options.validated().with_quality()
+    image = np.ascontiguousarray(image, np.float32)
+    free = np.asarray(free, bool)
+    _check(image, free, opts)
+    shape = image.shape[:2]
+    wrap = opts.tileable
+    source = image if source_free else push_pull(image, ~free)
+    levels = level_count([shape], shape, opts.levels, min_size=MIN_LEVEL_SIZE)
+    pyramid = build_pyramid(source, levels)
+    holes = mask_pyramid(free, levels)
+    jac = np.eye(2)
+    rng = np.random.default_rng(opts.seed)
+    rounds = 1 if source_free else 2
+    total = float(1 + rounds * (opts.coarse_sweeps + opts.sweeps * (levels - 1))) or 1.0
+
+    def advance(units):
+        if progress is not None:
+            progress(units / total)
+
+    pos = None
+    for level in range(levels - 1, -1, -1):
+        hole = holes[level]
+        level_shape = hole.shape
+        jac_field = np.broadcast_to(jac.astype(np.float32), (*level_shape, 2, 2)).copy()
+        lo, hi = valid_box(level_shape, jac, opts.patch_radius)
+        if source_free and level > 0:
+            # the bands may continue the kept centre up to the image's edge (windows there read
+            # edge-replicated pixels) at the coarse levels, where the bands are a pixel or two
+            # wide: else they could only copy from elsewhere and cut a seam along the centre
+            lo, hi = np.zeros(2), np.array(level_shape, np.float64) - 1
+        forbidden = np.zeros(level_shape, bool)
+        if not source_free:
+            reach = opts.patch_radius + 1 if level else max(opts.patch_radius + 1, opts.blend)
+            forbidden = dilate(hole, reach)
+            if forbidden[int(lo[0]):int(hi[0]) + 1, int(lo[1]):int(hi[1]) + 1].all():
+                forbidden = hole.copy()  # a mask this large at a coarse level: the hole only
+        known = identity_positions(level_shape)
+        if pos is None:
+            pos = known.copy()
+            if source_free:
+                pos[..., 0] = np.clip(pos[..., 0], lo[0], hi[0])
+                pos[..., 1] = np.clip(pos[..., 1], lo[1], hi[1])
+            else:
+                pos[hole] = _random_allowed(rng, int(hole.sum()), ~forbidden, lo, hi)
+            advance(1)
+            sweeps = opts.coarse_sweeps
+        else:
+            pos = upsample(pos, level_shape, jac_field, lo, hi)
+            pos[~hole] = known[~hole]
+            sweeps = opts.sweeps
+        constraint = LevelConstraint(~hole, known, forbidden)
+        level_image = pyramid[level]
+        for round_ in range(1 if source_free else 2):
+            # a hole's second round matches against the first round's fill instead of the
+            # smooth pre-fill, which blurs the features of the kept pixels around the hole
+            if round_:
+                level_image = np.where(hole[..., None], render(pyramid[level], pos), level_image)
+            feat = appearance_features([level_image], opts.feature_dims)[0]
+            pos = refine(pos, feat, jac_field, lo, hi, sweeps, opts, wrap=wrap, seed=opts.seed,
+                         salt=level + 100 * round_, level_scale=2 ** level,
+                         coarsest_scale=2 ** (levels - 1), progress=advance,
+                         constraint=constraint)
+    if not source_free and forbidden[np.rint(pos[free]).astype(int)[:, 0],
+                                      np.rint(pos[free]).astype(int)[:, 1]].any():
+        raise OsmapError("the mask leaves too little of the image to fill it from")
+    pixels = render_fill(lambda px, blend: render(px, pos, jac_field, wrap, blend), image, free,
+                         source_free, opts.blend)
+    return SynthResult(pixels, pos)
+
+
+def render_fill(draw, pixels: np.ndarray, free: np.ndarray, source_free: bool,
+                blend: int) -> np.ndarray:
+    """The free pixels rendered by draw(pixels, blend) (osmap_cli.synth.render.render through
+    the positions), every other pixel of `pixels` unchanged.
+
+    Seam blending lets the kept pixels vote for their free neighbours with their own
+    continuation. For a hole that continuation is the hole's unknown content, so the hole is
+    first rendered without blending and the votes read that instead.
+    """
+    inside = free[..., None]
+    source = pixels
+    if not source_free and blend > 0:
+        source = np.where(inside, draw(pixels, 0), pixels)
+    out = np.where(inside, draw(source, blend), pixels).astype(np.float32)
+    if not source_free:
+        out = match_border(out, free)
+    return out
+
+
+def match_border(image: np.ndarray, free: np.ndarray, width: int = BORDER_FADE) -> np.ndarray:
+    """image with the free pixels near the kept ones shifted toward them: the difference across
+    the border (kept - free, smoothed along the border by push-pull) is added to the free
+    pixels, fading to nothing `width` pixels in. Removes the colour step a fill would leave
+    at its border; the kept pixels are untouched."""
+    h, w = free.shape
+    kept = ~free
+    diff = np.zeros(image.shape, np.float64)
+    count = np.zeros((h, w))
+    for axis in (0, 1):
+        for step in (1, -1):
+            shifted_kept = np.roll(kept, step, axis)
+            shifted = np.roll(image, step, axis)
+            edge = free & shifted_kept
+            if axis == 0:
+                edge[0 if step == 1 else -1] = False
+            else:
+                edge[:, 0 if step == 1 else -1] = False
+            diff[edge] += shifted[edge] - image[edge]
+            count[edge] += 1
+    diff[count > 0] /= count[count > 0][:, None]
+    rim = count > 0
+    if not rim.any():
+        return image
+    # the difference averaged along the border (a normalised box blur over the rim pixels):
+    # the colour offset, not the pixel-to-pixel detail, which would copy the kept row inwards
+    weight = rim.astype(np.float64)
+    blur_diff, blur_weight = diff, weight
+    for axis in (0, 1):
+        blur_diff = sum(np.roll(blur_diff, d, axis) for d in range(-BORDER_SPAN, BORDER_SPAN + 1))
+        blur_weight = sum(np.roll(blur_weight, d, axis)
+                          for d in range(-BORDER_SPAN, BORDER_SPAN + 1))
+    diff = np.where(rim[..., None], blur_diff / np.maximum(blur_weight, 1e-12)[..., None], 0.0)
+    smooth = push_pull(diff.astype(np.float32), rim)
+    depth = np.zeros((h, w))
+    reached = rim.copy()
+    for d in range(1, width):
+        grown = dilate(reached, 1) & free
+        depth[grown & ~reached] = d
+        reached = grown
+    fade = np.where(reached, np.clip(1.0 - depth / width, 0.0, 1.0), 0.0)
+    fade = np.where(free, fade, 0.0)
+    return (image + fade[..., None] * smooth).astype(np.float32)

@@ -1,0 +1,171 @@
+"""One `osmap inpaint` or `osmap tileable` job: an image -> the same image with a hole filled or
+its edge bands re-synthesized, plus its --with maps and --uv-out positions.
+
+    read (image, mask, --with maps) -> check (mask, border, formats) -> compute (fill)
+    -> stage (every output in one transaction) -> commit
+
+The outputs, formats and transaction are osmap_cli.synth.job.SynthJob's; what differs is the
+input (a mask or a border), the engine (osmap_cli.synth.fill) and the provenance.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from osmap_cli.errors import OsmapError
+from osmap_cli.imageio import output_depth
+from osmap_cli.synth.job import UV_DESCRIPTION, SynthJob
+
+__all__ = ["MODES", "FillJob", "read_mask"]
+
+MODES = ("inpaint", "tileable")
+
+
+@dataclass(frozen=True)
+class _FillInputs:
+    image: object  # osmap_cli.imageio.Image
+    maps: list  # [(WithMap, output path, Image)]
+    free: np.ndarray  # bool (H, W): the pixels to synthesize
+    fields: object = None
+
+
+def read_mask(mask: str, image) -> np.ndarray:
+    """bool (H, W), True = fill: MASK's white pixels (any colour channel >= 0.5), or with
+    mask "alpha" the image's transparent pixels (alpha < 0.5)."""
+    from osmap_cli.imageio import read_image
+
+    pixels = image.pixels
+    if mask == "alpha":
+        if image.alpha_channel is None:
+            raise OsmapError(f"{image.path}: has no alpha channel (--mask alpha takes the fill "
+                             "region from it; give a mask image instead)")
+        free = pixels[..., image.alpha_channel] < 0.5
+        what = f"{image.path}: its alpha channel has no transparent pixel"
+    else:
+        read = read_image(mask)
+        if read.pixels.shape[:2] != pixels.shape[:2]:
+            raise OsmapError(f"{mask}: the mask is {read.pixels.shape[1]}x{read.pixels.shape[0]} "
+                             f"but {image.path} is {pixels.shape[1]}x{pixels.shape[0]} (they "
+                             "must be the same size)")
+        colour = [c for c in range(read.pixels.shape[2]) if c != read.alpha_channel] or [0]
+        free = read.pixels[..., colour].max(axis=2) >= 0.5
+        what = f"{mask}: the mask is empty (white = fill; it has no pixel >= 0.5)"
+    if not free.any():
+        raise OsmapError(what)
+    if free.all():
+        raise OsmapError(f"{mask if mask != 'alpha' else image.path}: the mask covers the "
+                         "whole image (nothing is left to fill from)")
+    return free
+
+
+@dataclass(frozen=True)
+class FillJob(SynthJob):
+    """One image and where its outputs go. mode: inpaint (mask) or tileable (border)."""
+
+    mode: str = "inpaint"
+    mask: str | None = None  # a mask image's path, or "alpha" (inpaint)
+    border: int = 0  # the requested band width, 0: automatic (tileable)
+    label: str = "osmap inpaint"
+
+    def describe(self) -> dict:
+        record = super().describe()
+        record["size"] = None  # the image's size, known once it is read
+        record["options"] = {**record["options"], "mode": self.mode,
+                             **({"mask": self.mask} if self.mode == "inpaint" else
+                                {"border": self.border})}
+        return record
+
+    def read(self) -> _FillInputs:
+        from osmap_cli.imageio import read_image
+        from osmap_cli.materials import load_aligned
+        from osmap_cli.synth.fill import border_bands
+        from osmap_cli.synth.options import FillOptions
+
+        image = read_image(self.exemplar)
+        if self.mode == "inpaint":
+            free = read_mask(self.mask, image)
+        else:
+            try:
+                band = FillOptions(border=self.border).band(image.pixels.shape[:2])
+            except OsmapError as exc:
+                raise OsmapError(f"{self.exemplar}: {exc}") from None
+            free = border_bands(image.pixels.shape[:2], band)
+        maps = [(spec, path, load_aligned(spec.path, image.pixels.shape, self.exemplar))
+                for spec, path in self.withs]
+        return _FillInputs(image, maps, free)
+
+    def sized(self, inputs) -> SynthJob:
+        """This job with the options' size set to the image's."""
+        h, w = inputs.image.pixels.shape[:2]
+        return dataclasses.replace(self, options=self.options.replace(
+            width=w, height=h, tileable=self.mode == "tileable"))
+
+    def check(self, inputs) -> None:
+        SynthJob.check(self.sized(inputs), inputs)
+
+    def compute(self, inputs):
+        from osmap_cli.progress import ProgressBar
+        from osmap_cli.synth.fill import fill
+
+        options = self.sized(inputs).options
+        with ProgressBar(enabled=self.progress, desc=self.label) as progress:
+            return fill(inputs.image.pixels, inputs.free, options,
+                        source_free=self.mode == "tileable", progress=progress)
+
+    def stage(self, outputs, inputs, result):
+        from osmap_cli.imageio import encode_image
+        from osmap_cli.materials import render_map
+        from osmap_cli.provenance import fill_args, image_metadata
+        from osmap_cli.synth.fill import render_fill
+
+        job = self.sized(inputs)
+        options, image = job.options, inputs.image
+        channels = image.pixels.shape[2]
+        fmt, depth = output_depth(self.output, self.bit_depth, channels, image.bit_depth)
+        if self.mode == "inpaint":
+            given = os.path.basename(self.mask) if self.mask != "alpha" else "alpha"
+            more, extra = ["--mask", given], {"mask": given}
+        else:
+            from osmap_cli.synth.options import FillOptions
+
+            band = FillOptions(border=self.border).band(image.pixels.shape[:2])
+            more = ["--border", str(self.border)] if self.border else []
+            extra = {"border": str(band)}
+        args = fill_args(options, self.preset, self.preset_values, depth, more)
+
+        def meta(role, more_args=(), more_extra=None):
+            return image_metadata(options, self.preset, self.exemplar, image.pixels.shape,
+                                  args + list(more_args), role, {**extra, **(more_extra or {})},
+                                  command=self.mode)
+
+        def stage_image(path, pixels, bits, names, metadata):
+            outputs.stage(path, lambda temp: encode_image(temp, pixels, bits, names, metadata,
+                                                          name=path))
+
+        stage_image(self.output, result.pixels, depth, tuple(image.channel_names),
+                    meta("image"))
+        source_free = self.mode == "tileable"
+        for spec, path, mapped in inputs.maps:
+            _, map_depth = output_depth(path, self.bit_depth, mapped.pixels.shape[2],
+                                        mapped.bit_depth)
+
+            def draw(pixels, blend, mapped=mapped, spec=spec):
+                return render_map(dataclasses.replace(mapped, pixels=pixels), result.positions,
+                                  np.eye(2), spec.normal, spec.path, source_free, blend)
+
+            pixels = render_fill(draw, mapped.pixels, inputs.free, source_free, options.blend)
+            source = os.path.basename(spec.path)
+            stage_image(path, pixels, map_depth, tuple(mapped.channel_names),
+                        meta(f"with:{spec.name}", ["--with", f"{spec.name}={source}"],
+                             {"source": source, "normal_map": str(spec.normal).lower()}))
+        if self.uv_out is not None:
+            uv = result.positions[..., ::-1]
+            ext = os.path.splitext(self.output)[1].lower()
+            stage_image(self.uv_out, uv, 32, ("u", "v"),
+                        meta("uv", (), {"uv_channels": UV_DESCRIPTION, "image_ext": ext}))
+        return job._summary(fmt, depth, channels, inputs)
+

@@ -1,0 +1,281 @@
+"""osmap inpaint and osmap tileable (osmap_cli.synth.fill): kept pixels bit for bit, a fill that
+continues its surroundings without a rim, seamless tiling, and the command lines' contract."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+
+import numpy as np
+import pytest
+from texture_stats import coherence
+
+
+def _hole(shape, size, centre=None):
+    free = np.zeros(shape, bool)
+    cy, cx = centre or (shape[0] // 2, shape[1] // 2)
+    free[cy - size // 2:cy + size // 2, cx - size // 2:cx + size // 2] = True
+    return free
+
+
+def _blob(shape):
+    yy, xx = np.mgrid[:shape[0], :shape[1]]
+    cy, cx = shape[0] // 2, shape[1] // 2
+    angle, radius = np.arctan2(yy - cy, xx - cx), np.hypot(yy - cy, xx - cx)
+    return radius < 22 + 7 * np.sin(3 * angle) + 4 * np.cos(5 * angle + 1)
+
+
+def _steps(image, axis):
+    """Step between each pixel and the next along axis (wrapping), RMS over channels."""
+    return np.sqrt(((image - np.roll(image, -1, axis)) ** 2).sum(-1))
+
+
+def rim_z(original, output, free, draws=200):
+    """Mean step across the border of `free` in output, as a z-score among the mean steps
+    along the same contour moved to random places of the original."""
+    def border_mean(image, mask):
+        values = []
+        for axis in (0, 1):
+            cross = mask != np.roll(mask, -1, axis)
+            if axis == 0:
+                cross[-1] = False
+            else:
+                cross[:, -1] = False
+            values.append(_steps(image, axis)[cross])
+        return np.concatenate(values).mean()
+
+    rng = np.random.default_rng(0)
+    h, w = free.shape
+    ref = [border_mean(np.roll(original, (rng.integers(h), rng.integers(w)), (0, 1)), free)
+           for _ in range(draws)]
+    return (border_mean(output, free) - np.mean(ref)) / np.std(ref)
+
+
+def detail(image, where):
+    """Mean step between horizontally and vertically adjacent pixels that are both in `where`."""
+    values = [_steps(image, axis)[where & np.roll(where, -1, axis)] for axis in (0, 1)]
+    return np.concatenate(values).mean()
+
+
+def seam_z(image):
+    """texmetrics' wrap-around seam z-score, worst axis: the wrap step among the interior
+    per-line mean steps."""
+    worst = -np.inf
+    for axis in (0, 1):
+        per = _steps(image, axis).mean(axis=1 - axis)
+        inner = per[:-1]
+        worst = max(worst, (per[-1] - inner.mean()) / inner.std())
+    return worst
+
+
+def _check_fill(image, result, free, rows_outside):
+    """Kept pixels bit for bit, positions never inside the hole, coherence of a crop around the
+    hole within 1.3x of the untouched crop, no rim."""
+    assert np.array_equal(result.pixels[~free], image[~free])
+    ys, xs = np.nonzero(free)
+    used = np.rint(result.positions[free]).astype(int)
+    assert not free[used[:, 0], used[:, 1]].any(), "the fill copied the hole's own content"
+    y0, y1 = max(ys.min() - 12, 0), ys.max() + 13
+    x0, x1 = max(xs.min() - 12, 0), xs.max() + 13
+    reference = image[rows_outside]
+    untouched = coherence(reference, image[y0:y1, x0:x1], stride=2)
+    filled = coherence(reference, result.pixels[y0:y1, x0:x1], stride=2)
+    assert filled < 1.3 * untouched, (filled, untouched)
+    z = rim_z(image, result.pixels, free)
+    assert z < 3.0, z
+    # as much detail as the rest of the image (nearest-patch coherence alone lets blur pass)
+    ratio = detail(result.pixels, free) / detail(image, ~free)
+    assert 0.75 < ratio < 1.3, ratio
+
+
+@pytest.fixture(scope="module")
+def gravel(samples):
+    from osmap_cli.imageio import read_image
+
+    return read_image(samples / "gravel.png").pixels
+
+
+def test_inpaint_square_hole_continues_its_surroundings(gravel):
+    from osmap_cli.synth import SynthOptions
+    from osmap_cli.synth.fill import fill
+
+    free = _hole(gravel.shape[:2], 40)
+    result = fill(gravel, free, SynthOptions(seed=1), source_free=False)
+    rows = ~free.any(axis=1)
+    _check_fill(gravel, result, free, rows)
+    # the checks can fail: a smooth fill has no detail, a pasted patch leaves a rim
+    from osmap_cli.synth.constraints import push_pull
+
+    assert detail(push_pull(gravel, ~free), free) < 0.5 * detail(gravel, ~free)
+    pasted = np.where(free[..., None], np.roll(gravel, (50, 50), (0, 1)), gravel)
+    assert rim_z(gravel, pasted, free) > 3.0
+
+
+def test_inpaint_irregular_mask_colour(samples):
+    from osmap_cli.imageio import read_image
+    from osmap_cli.synth import SynthOptions
+    from osmap_cli.synth.fill import fill
+
+    image = read_image(samples / "cells.png").pixels
+    free = _blob(image.shape[:2])
+    result = fill(image, free, SynthOptions(seed=2), source_free=False)
+    _check_fill(image, result, free, ~free.any(axis=1))
+
+
+def test_tileable_bands_wrap_without_seam(samples):
+    from osmap_cli.imageio import read_image
+    from osmap_cli.synth import SynthOptions
+    from osmap_cli.synth.fill import border_bands, fill
+
+    image = read_image(samples / "wood_side.png").pixels
+    free = border_bands(image.shape[:2], 16)
+    assert seam_z(image) > 3.0  # the photo as it is does not tile
+    result = fill(image, free, SynthOptions(tileable=True), source_free=True)
+    assert np.array_equal(result.pixels[~free], image[~free])
+    assert seam_z(result.pixels) < 3.0
+    band = coherence(image, np.roll(result.pixels, (16, 16), (0, 1))[:40], stride=2)
+    whole = coherence(image, np.roll(image, (16, 16), (0, 1))[:40], stride=2)
+    assert band < 1.3 * whole, (band, whole)
+
+
+def test_fill_refuses_empty_and_full_masks(gravel):
+    from osmap_cli.errors import OsmapError
+    from osmap_cli.synth import SynthOptions
+    from osmap_cli.synth.fill import fill
+
+    for mask in (np.zeros(gravel.shape[:2], bool), np.ones(gravel.shape[:2], bool)):
+        with pytest.raises(OsmapError):
+            fill(gravel, mask, SynthOptions(), source_free=False)
+
+
+# --------------------------------------------------------------------------------------------
+# the command lines
+
+
+def _write(path, pixels, names=None):
+    from osmap_cli.imageio import write_image
+
+    write_image(path, np.asarray(pixels, np.float32), 8, names)
+    return path
+
+
+@pytest.fixture(scope="module")
+def material(samples, tmp_path_factory):
+    """A 64x64 image, an aligned map, a mask with a 20x20 hole and an RGBA copy whose hole is
+    transparent."""
+    from osmap_cli.imageio import read_image
+
+    folder = tmp_path_factory.mktemp("fill")
+    image = read_image(samples / "cells.png").pixels[:64, :64]
+    rough = read_image(samples / "brick.png").pixels[:64, :64]
+    free = _hole((64, 64), 20)
+    rgba = np.concatenate([image, (~free)[..., None].astype(np.float32)], axis=2)
+    return {"image": _write(folder / "img.png", image),
+            "rough": _write(folder / "img_rough.png", rough),
+            "mask": _write(folder / "img_mask.png", free[..., None]),
+            "rgba": _write(folder / "img_rgba.png", rgba, ("R", "G", "B", "A")),
+            "free": free, "folder": folder}
+
+
+def test_inpaint_cli_keeps_maps_and_positions_aligned(material, run_cli, tmp_path):
+    from osmap_cli.imageio import read_image, read_metadata
+
+    out, uv = tmp_path / "out.png", tmp_path / "uv.exr"
+    result = run_cli("inpaint", material["image"], "--mask", material["mask"], "-o", out,
+                     "--with", f"rough={material['rough']}", "--uv-out", uv, "--seed", "3")
+    assert result.code == 0, result.err
+    free = material["free"]
+    image = read_image(material["image"]).pixels
+    written = read_image(out).pixels
+    assert np.array_equal(written[~free], image[~free])
+    positions = read_image(uv).pixels[..., ::-1]  # (u, v) -> (row, col)
+    rows, cols = np.indices(free.shape)
+    assert np.array_equal(positions[~free], np.stack([rows, cols], -1)[~free])
+    rough = read_image(material["rough"]).pixels
+    rough_out = read_image(tmp_path / "out_rough.png").pixels
+    assert np.array_equal(rough_out[~free], rough[~free])
+    # inside the hole (away from its border blending) the map follows the image's positions
+    inner = _hole((64, 64), 12)
+    ys, xs = np.nonzero(inner)
+    idx = np.rint(positions[ys, xs]).astype(int)
+    assert np.abs(rough_out[ys, xs] - rough[idx[:, 0], idx[:, 1]]).mean() < 0.05
+    meta = read_metadata(out)
+    assert meta["command"] == "inpaint" and meta["mask"] == "img_mask.png"
+    info = run_cli("info", out, "--command")
+    assert info.out.startswith("osmap inpaint img.png -o ") and "--mask img_mask.png" in info.out
+
+
+def test_inpaint_alpha_mask(material, run_cli, tmp_path):
+    from osmap_cli.imageio import read_image
+
+    out = tmp_path / "out.png"
+    result = run_cli("inpaint", material["rgba"], "--mask", "alpha", "-o", out)
+    assert result.code == 0, result.err
+    written = read_image(out).pixels
+    free = material["free"]
+    source = read_image(material["rgba"]).pixels
+    assert np.array_equal(written[~free], source[~free])
+    assert (written[free][:, 3] == 1.0).all()  # the fill is opaque, like what it copies
+
+
+def test_fill_errors_are_one_line_and_write_nothing(material, run_cli, tmp_path):
+    folder = material["folder"]
+    small = _write(folder / "small_mask.png", np.ones((32, 64, 1)))
+    empty = _write(folder / "empty_mask.png", np.zeros((64, 64, 1)))
+    out = tmp_path / "out.png"
+    cases = [
+        (("inpaint", material["image"], "--mask", small), "32", "64x64"),
+        (("inpaint", material["image"], "--mask", empty), "empty", "empty_mask.png"),
+        (("inpaint", material["image"], "--mask", "alpha"), "no alpha", "img.png"),
+        (("tileable", material["image"], "--border", "40"), "allowed 1 to 31", "img.png"),
+    ]
+    for args, phrase, name in cases:
+        result = run_cli(*args, "-o", out)
+        assert result.code == 1, result.err
+        assert len(result.err_lines) == 1 and phrase in result.err and name in result.err, \
+            result.err
+        assert not out.exists()
+    assert run_cli("tileable", material["image"], "--border", "-1", "-o", out).code == 2
+    assert run_cli("inpaint", material["image"], "-o", out).code == 2  # --mask is required
+
+
+def test_tileable_batch_same_bytes_any_threads(material, osmap_exe, tmp_path):
+    """-j 2 --json in --out-dir, and separate runs with 1 or 2 Numba threads: same bytes."""
+    import json
+
+    from osmap_cli.imageio import read_image
+
+    second = _write(material["folder"] / "img2.png",
+                    np.roll(read_image(material["image"]).pixels, 20, 1))
+    base = [osmap_exe, "tileable", "--border", "10", "--seed", "4"]
+    done = subprocess.run([*base, str(material["image"]), str(second), "--out-dir",
+                           str(tmp_path / "batch"), "-j", "2", "--json"],
+                          capture_output=True, text=True, env=os.environ)
+    assert done.returncode == 0, done.stderr
+    records = [json.loads(line) for line in done.stdout.splitlines()]
+    assert sorted(r["status"] for r in records) == ["ok", "ok"]
+    assert all(r["options"]["border"] == 10 for r in records)
+    outputs = []
+    for threads in ("1", "2"):
+        path = tmp_path / f"t{threads}.png"
+        env = dict(os.environ, NUMBA_NUM_THREADS=threads)
+        run = subprocess.run([*base, str(material["image"]), "-o", str(path)],
+                             capture_output=True, text=True, env=env)
+        assert run.returncode == 0, run.stderr
+        outputs.append(path.read_bytes())
+    assert outputs[0] == outputs[1] == (tmp_path / "batch" / "img.png").read_bytes()
+
+
+def test_fill_help_lists_the_flags_that_apply(run_cli, repo_root):
+    from osmap_cli.commands.fill_common import OSMAP_ONLY
+    from osmap_cli.options import flag, tunables
+    from osmap_cli.synth.options import SynthOptions
+
+    usage = (repo_root / "docs" / "usage.md").read_text()
+    for command, own in (("inpaint", "--mask"), ("tileable", "--border")):
+        result = run_cli(command, "--help")
+        assert result.code == 0
+        text = " ".join(result.out.split())
+        assert own in text and f"osmap {command} " in text and own in usage
+        for name in tunables(SynthOptions):
+            assert (flag(name) in text) == (name not in OSMAP_ONLY), (command, name)
