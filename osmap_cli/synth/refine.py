@@ -26,6 +26,9 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
            opts: SynthOptions, *, wrap: bool, seed: int, salt: int, level_scale: int = 1,
            coarsest_scale: int = 1, progress=None) -> np.ndarray:
     """`sweeps` red-black coherence sweeps over pos (H, W, 2); returns the new field."""
+    # C order whatever made pos (upsample's arithmetic keeps a strided layout): the kernels then
+    # compile, load and run for one array layout only
+    pos = np.ascontiguousarray(pos, np.float32)
     knn = similar_positions(feat, lo, hi, opts.knn, MAX_KNN_REFERENCES)
     if opts.knn == 0:
         knn = knn[:, :, :0]
