@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import sys
 from dataclasses import dataclass
 
 from osmap_cli.batch import Job
@@ -20,6 +21,10 @@ __all__ = ["SynthJob", "UV_DESCRIPTION"]
 
 UV_DESCRIPTION = ("u = exemplar column (x), v = exemplar row (y), in exemplar pixels; "
                   "(0, 0) is the centre of the top-left exemplar pixel")
+
+
+def _announce(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
 
 
 def _refuse_jpeg_channels(path: str, names) -> None:
@@ -97,6 +102,10 @@ class SynthJob(Job):
     def compute(self, inputs: _Inputs):
         from osmap_cli import synth
         from osmap_cli.progress import ProgressBar
+        from osmap_cli.synth.warm import ensure_compiled
+
+        # a first run compiles the kernels (two processes at once) and says so, unless --quiet
+        ensure_compiled(None if self.quiet else _announce)
 
         with ProgressBar(enabled=self.progress, desc=self.label) as progress:
             extra = {"fields": inputs.fields} if inputs.fields is not None else {}
