@@ -57,6 +57,10 @@ def run_bands(kernel, rows: int, *args) -> None:
         for y0, y1 in bands:
             kernel(*args, y0, y1)
         return
+    if not getattr(kernel, "signatures", True):
+        # first call: compile or load it in this thread alone, not in every thread at once
+        (y0, y1), bands = bands[0], bands[1:]
+        kernel(*args, y0, y1)
     pool = _executor(threads)
     for future in [pool.submit(kernel, *args, y0, y1) for y0, y1 in bands]:
         future.result()

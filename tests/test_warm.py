@@ -59,3 +59,12 @@ def test_json_keeps_stdout_for_records(cold, run_cli, small_samples, tmp_path):
                      "--size", "32", "--preset", "fast", "--json")
     assert result.code == 0
     assert "compiling" not in result.out and "compiling kernels" in result.err
+
+
+def test_a_refused_size_neither_compiles_nor_announces(cold, run_cli, monkeypatch,
+                                                       small_samples, tmp_path):
+    monkeypatch.setenv("OSMAP_MEMORY_LIMIT", "300M")
+    result = run_cli("synth", small_samples / "cells.png", "-o", tmp_path / "big.png",
+                     "--size", "4096")
+    assert result.code == 1 and "needs about" in result.err
+    assert "compiling" not in result.err and cold == []
