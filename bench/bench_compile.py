@@ -109,7 +109,9 @@ def run(quick: bool = False, log=print) -> str:
     rows.append(["total", fmt(total, 1), "", fmt(sum(warm["loads"].values()), 3)])
     return "\n".join([
         "## Compile: where a first run's time goes", "",
-        f"_{common.stamp()}; reproduce with `{COMMAND}`._", "",
+        f"_{common.stamp()}; reproduce with `{COMMAND}`; load average (1 min) at the end: "
+        f"{common.load_average()} (CPU seconds are less affected by a busy machine than wall "
+        "seconds)._", "",
         "A default 256x256 `synthesize` of `samples/cells.png` in a fresh process with an empty "
         "NUMBA_CACHE_DIR and one Numba thread: *compile CPU s* is the calling thread's CPU time "
         "in each kernel's first call (its callees included); *load s* is the wall time to load "

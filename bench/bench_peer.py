@@ -46,6 +46,7 @@ def run(quick: bool = False, runs: int | None = None, log=print) -> str:
     if osmap is None:
         raise RuntimeError("the osmap CLI is not installed next to this interpreter")
     runs = runs or (2 if quick else 3)
+    load_start = common.load_average()
     cases = QUICK_CASES if quick else CASES
     work = Path(tempfile.mkdtemp(prefix="osmap-peer-", dir=common.tmp_root()))
     env = dict(os.environ)
@@ -81,7 +82,10 @@ def run(quick: bool = False, runs: int | None = None, log=print) -> str:
                for size, v in by_size.items()]
     return "\n".join([
         title, "",
-        f"_{common.stamp()}; reproduce with `{COMMAND}{' --quick' if quick else ''}`._", "",
+        f"_{common.stamp()}; reproduce with `{COMMAND}{' --quick' if quick else ''}`; load "
+        f"average (1 min) at start / end: {load_start} / {common.load_average()} (the peer runs "
+        "up to 8 threads, osmap one per core: on a busy machine the peer gets the larger share "
+        "of the CPU, and the wall ratios grow)._", "",
         "`osmap synth EXEMPLAR -o OUT --size N --seed 1 --quiet` (warm Numba cache) and the "
         "Resynthesizer engine (`resynth_cli EXEMPLAR OUT N N`, its defaults; outside the "
         "repository, used only to measure) on the shipped samples, each a fresh process timed "
