@@ -68,3 +68,12 @@ def test_a_refused_size_neither_compiles_nor_announces(cold, run_cli, monkeypatc
                      "--size", "4096")
     assert result.code == 1 and "needs about" in result.err
     assert "compiling" not in result.err and cold == []
+
+
+def test_warmup_command(cold, run_cli):
+    first = run_cli("warmup")
+    assert first.code == 0 and "compiling kernels" in first.err
+    assert first.out.strip() == "osmap: kernels compiled" and cold == [["organise", "refine"]]
+    again = run_cli("warmup")
+    assert again.code == 0 and again.out.strip() == "osmap: kernels already compiled"
+    assert run_cli("warmup", "--quiet").out == ""
