@@ -12,6 +12,12 @@ Sections:
   memory   1024x1024 end to end and peak RSS against output size (bench/bench_memory.py)
   cluster  a 40-job batch with -j 2 against --scheduler local:2, per-task overhead of the
            Dask path (bench/bench_cluster.py), about 5 min; needs the `cluster` extra
+  large    4096x4096 from a 256 px exemplar: wall, CPU, peak RSS against the memory guard's
+           estimate (bench/bench_large.py), about 4 min on two free cores; needs ../shared
+  compile  the Numba compile of each kernel from an empty cache, and warm loads
+           (bench/bench_compile.py), about 3 min
+  peer     osmap and the Resynthesizer engine run in turn, wall and CPU ratios
+           (bench/bench_peer.py), about 3 min; needs ../shared/peers (skipped with a note)
 
     .venv/bin/python bench/run.py [--quick] [--only synth,som,...] [--out BENCHMARKS.md]
 
@@ -33,14 +39,15 @@ import common
 from common import BENCH_DIR, REPO_ROOT
 
 SECTIONS = ("synth", "quality", "surface", "solid", "som", "kernels", "roofline", "memory",
-            "cluster")
+            "cluster", "large", "compile", "peer")
 MARKER = "<!-- bench-section: {} -->"
 MARKER_RE = re.compile(r"^<!-- bench-section: (\w+) -->\s*$", re.M)
 # For files written before the markers existed: the heading each section starts with.
 HEADING_PREFIX = {"synth": "## Speed", "quality": "## Quality", "surface": "## Surface",
                   "solid": "## Solid", "som": "## Classic SOM", "kernels": "## OS-Map kernels",
                   "roofline": "## Roofline", "memory": "## Memory",
-                  "cluster": "## Clusters"}
+                  "cluster": "## Clusters", "large": "## Large outputs", "compile": "## Compile",
+                  "peer": "## Against the Resynthesizer"}
 COMMANDS = {s: f".venv/bin/python bench/run.py --only {s}" for s in SECTIONS}
 
 
@@ -133,9 +140,25 @@ def run_memory(args, log) -> str:
     return bench_memory.run(quick=args.quick, log=log)
 
 
+def run_large(args, log) -> str:
+    import bench_large
+    return bench_large.run(quick=args.quick, log=log)
+
+
+def run_compile(args, log) -> str:
+    import bench_compile
+    return bench_compile.run(quick=args.quick, log=log)
+
+
+def run_peer(args, log) -> str:
+    import bench_peer
+    return bench_peer.run(quick=args.quick, log=log)
+
+
 RUNNERS = {"synth": run_synth, "quality": run_quality, "surface": run_surface,
            "solid": run_solid, "som": run_som, "kernels": run_kernels,
-           "roofline": run_roofline, "memory": run_memory, "cluster": run_cluster}
+           "roofline": run_roofline, "memory": run_memory, "cluster": run_cluster,
+           "large": run_large, "compile": run_compile, "peer": run_peer}
 
 
 def header(ran: list[str], quick: bool, durations: dict) -> str:

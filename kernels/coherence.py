@@ -14,8 +14,9 @@ and writing a new one (Jacobi within a colour), and every random number is a has
 from collections import namedtuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
+from osmap_kernels.bands import run_bands
 from osmap_kernels.common import EIGHT_NEIGHBOURS, hash_uniform, neighbour, sample
 
 # Parameters of one refinement pass.
@@ -101,26 +102,31 @@ def _candidate_cost(feat, cy, cx, jac, radius, nb, nb_ok, occ, lam, best, buf):
     return total * factor
 
 
-@njit(cache=True, parallel=True)
 def refine_pass(src, dst, feat, jac, knn, occ, area, p):
     """One red-black pass: for pixels of colour p.parity, write the best candidate into dst.
 
     src, dst float32[H, W, 2] (dst must be a copy of src); feat float32[h, w, F] exemplar
     appearance; jac float32[H, W, 2, 2] output-to-exemplar Jacobian per pixel; knn int32[h, w, k, 2]
     similar exemplar positions; occ float32[h, w] occupancy; area float32[H, W] the size of each
-    pixel's copy region (copy_region_areas).
+    pixel's copy region (copy_region_areas). Row bands run on osmap_kernels.bands' threads.
     """
+    run_bands(_refine_rows, src.shape[0], src, dst, feat, jac, knn, occ, area, p)
+
+
+@njit(cache=True, nogil=True)
+def _refine_rows(src, dst, feat, jac, knn, occ, area, p, y0, y1):
+    """refine_pass on rows y0 <= y < y1 (reads src, writes only those rows of dst)."""
     H, W = src.shape[0], src.shape[1]
     nf = feat.shape[2]
     r = p.radius
     side = 2 * r + 1
     k = knn.shape[2]
     hmax = max(feat.shape[0], feat.shape[1])
-    for y in prange(H):
-        nb = np.empty(side * side * nf)
-        nb_ok = np.zeros(side * side, np.bool_)
-        buf = np.empty(nf)
-        seen = np.empty((8, 2))
+    nb = np.empty(side * side * nf)
+    nb_ok = np.zeros(side * side, np.bool_)
+    buf = np.empty(nf)
+    seen = np.empty((8, 2))
+    for y in range(y0, y1):
         for x in range((y + p.parity) % 2, W, 2):
             J = jac[y, x]
             # gather the output neighbourhood's current appearance
@@ -202,18 +208,24 @@ def refine_pass(src, dst, feat, jac, knn, occ, area, p):
             dst[y, x, 1] = bx
 
 
-@njit(cache=True, parallel=True)
 def knn_table(feat, lo0, hi0, lo1, hi1, k, stride, exclude):
     """For every exemplar pixel, the k positions (from a grid of the given stride inside the
     valid box) with the nearest appearance features, excluding those within `exclude` pixels.
     Returns int32[h, w, k, 2]; ties are broken by scan order."""
+    out = np.zeros((feat.shape[0], feat.shape[1], k, 2), np.int32)
+    run_bands(_knn_rows, feat.shape[0], feat, lo0, hi0, lo1, hi1, k, stride, exclude, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _knn_rows(feat, lo0, hi0, lo1, hi1, k, stride, exclude, out, y0, y1):
+    """knn_table's rows y0 <= y < y1, written into out."""
     h, w, nf = feat.shape
-    out = np.zeros((h, w, k, 2), np.int32)
     ref_y = np.arange(lo0, hi0 + 1, stride)
     ref_x = np.arange(lo1, hi1 + 1, stride)
-    for y in prange(h):
-        best_d = np.empty(k)
-        best_i = np.empty((k, 2), np.int64)
+    best_d = np.empty(k)
+    best_i = np.empty((k, 2), np.int64)
+    for y in range(y0, y1):
         for x in range(w):
             for j in range(k):
                 best_d[j] = np.inf

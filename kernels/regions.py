@@ -240,10 +240,11 @@ def _best_shift(feat, fixed, base, target, merges, shifts, lo_pos, hi_pos, p):
 
 @njit(cache=True)
 def _region_extents(pos, labels):
-    """Per label, the smallest and largest exemplar position of its pixels: float64[H*W, 2] x 2."""
+    """Per label, the smallest and largest exemplar position of its pixels: [H*W, 2] x 2, in
+    pos's dtype (float32 in synth: exact, and half the memory of float64 at large sizes)."""
     H, W = labels.shape
-    lo_pos = np.full((H * W, 2), np.inf)
-    hi_pos = np.full((H * W, 2), -np.inf)
+    lo_pos = np.full((H * W, 2), np.inf, pos.dtype)
+    hi_pos = np.full((H * W, 2), -np.inf, pos.dtype)
     for y in range(H):
         for x in range(W):
             label = labels[y, x]

@@ -1,18 +1,27 @@
 """Render kernels: output colours from a position field, blending the copies across seams."""
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
+from osmap_kernels.bands import run_bands
 from osmap_kernels.common import neighbour, sample
 
 
-@njit(cache=True, parallel=True)
 def vote_image(image, pos, jac, radius, wrap):
     """Render with seam blending: every pixel p is the Gaussian-weighted mean of the colours its
     neighbours q (|q - p|_inf <= radius) assign to it, image at pos[q] + J[q] (p - q) (Kwatra et al.
     2005's voting). Inside a verbatim copy all votes agree, so copies stay exact; across a seam
     the two sides blend over about `radius` pixels. radius 0 samples pos itself (bilinear).
-    Where all votes agree the pixel is the copied value itself, bit for bit."""
+    Where all votes agree the pixel is the copied value itself, bit for bit. Row bands run on
+    osmap_kernels.bands' threads."""
+    out = np.empty((pos.shape[0], pos.shape[1], image.shape[2]), np.float32)
+    run_bands(_vote_rows, pos.shape[0], image, pos, jac, radius, wrap, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _vote_rows(image, pos, jac, radius, wrap, out, y0, y1):
+    """vote_image's rows y0 <= y < y1, written into out."""
     H, W = pos.shape[0], pos.shape[1]
     C = image.shape[2]
     sigma = max(0.6 * radius, 0.5)
@@ -21,11 +30,10 @@ def vote_image(image, pos, jac, radius, wrap):
     for dy in range(-radius, radius + 1):
         for dx in range(-radius, radius + 1):
             weights[dy + radius, dx + radius] = np.exp(-(dy * dy + dx * dx) / (2.0 * sigma * sigma))
-    out = np.empty((H, W, C), np.float32)
-    for y in prange(H):
-        buf = np.empty(C, np.float32)
-        acc = np.empty(C)
-        centre = np.empty(C, np.float32)
+    buf = np.empty(C, np.float32)
+    acc = np.empty(C)
+    centre = np.empty(C, np.float32)
+    for y in range(y0, y1):
         for x in range(W):
             sample(image, pos[y, x, 0], pos[y, x, 1], centre)
             acc[:] = 0.0
@@ -47,4 +55,3 @@ def vote_image(image, pos, jac, radius, wrap):
                     total += weight
             for c in range(C):
                 out[y, x, c] = centre[c] if agree else acc[c] / total
-    return out

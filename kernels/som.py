@@ -52,7 +52,7 @@ KernelParams = namedtuple(
 Buckets = namedtuple("Buckets", "active comps shape origin inv_size size head links")
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _wrapped_diff(a, period):
     """a reduced to [-period/2, period/2) when period > 0."""
     if period > 0.0:
@@ -60,7 +60,7 @@ def _wrapped_diff(a, period):
     return a
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _wrap_index(a, g):
     """Grid coordinate a (within one period of [0, g)) brought into [0, g)."""
     if a < 0:
@@ -70,7 +70,7 @@ def _wrap_index(a, g):
     return a
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _run(c, start, last, g):
     """A run of offsets [start, stop] from grid coordinate c along an axis of size g that stays
     contiguous in memory (stops where the axis wraps around): (coordinate of start, stop)."""
@@ -78,7 +78,7 @@ def _run(c, start, last, g):
     return a, min(last, start + g - 1 - a)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _node_dist(weights, i, x, periods):
     """Squared distance from x to node i's model vector (periodic components wrapped)."""
     dist = 0.0
@@ -88,7 +88,7 @@ def _node_dist(weights, i, x, periods):
     return dist
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _run_dists(flat, d, i0, n, x, periods, out):
     """out[j] = squared distance from x to node i0 + j, j < n, summed over k in the same order
     as `_node_dist` (so the values are identical). `flat` is the weights as one C-order vector:
@@ -128,7 +128,7 @@ SHORT_UPDATE = 8  # shorter runs of the classic update go node by node
 LONG_RUN = 256  # windows of whole rows with at least this many nodes a plane: block-wise scan
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _block_min(out, n):
     """Smallest of out[:n]: eight independent running minima, so the loop vectorises (a single
     running minimum is a serial dependency chain). Exact: a minimum does not round."""
@@ -153,7 +153,7 @@ def _block_min(out, n):
     return a0
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _scan_run(flat, d, i0, n, x, periods, dists, best, best_dist):
     """Fold nodes i0 .. i0 + n - 1 (in that order) into the running (best, best_dist) minimum,
     a block of len(dists) nodes at a time: distances, their minimum, and only when it beats the
@@ -173,7 +173,7 @@ def _scan_run(flat, d, i0, n, x, periods, dists, best, best_dist):
     return best, best_dist
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def find_winner(weights, x, grid, origin, window, periods, dists):
     """Index of the node nearest to x (squared Euclidean, periodic components wrapped) among the
     nodes of the window [origin, origin + window) (wrapping on wrapped axes). Ties: first node in
@@ -182,7 +182,7 @@ def find_winner(weights, x, grid, origin, window, periods, dists):
                              dists)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _find_winner_flat(weights, flat, x, grid, origin, window, periods, dists):
     """`find_winner`, given also the weights as one C-order vector `flat` (the same memory)."""
     best = -1
@@ -221,13 +221,13 @@ def _find_winner_flat(weights, flat, x, grid, origin, window, periods, dists):
 
 # ----------------------------------------------------------------------------- inverse map
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _cell_index(value, origin, inv_size, cells):
     """Cell of a data value along one bucket axis (clamped: the end cells reach infinity)."""
     return np.int64(min(max((value - origin) * inv_size, 0.0), cells - 1.0))
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _bucket_of(weights, i, comps, shape, origin, inv_size):
     """The cell node i's model vector falls in."""
     cell = 0
@@ -239,7 +239,7 @@ def _bucket_of(weights, i, comps, shape, origin, inv_size):
     return cell
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _bucket_link(head, links, i, cell):
     first = head[cell]
     links[0, i] = first
@@ -250,7 +250,7 @@ def _bucket_link(head, links, i, cell):
     links[2, i] = cell
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _bucket_move(head, links, i, cell):
     """Refile node i under `cell` if it is not there already."""
     old = links[2, i]
@@ -276,7 +276,7 @@ def fill_buckets(weights, b):
         _bucket_link(b.head, b.links, i, cell)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _scan_rank(i, grid, origin, window):
     """Position of node i in the window's scan order, -1 if i is outside the window."""
     a0 = i // (grid[1] * grid[2])
@@ -294,7 +294,7 @@ def _scan_rank(i, grid, origin, window):
     return rank
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _axis_cell(x, comp, corner, inv_size, cells):
     """Cell of x along one bucket axis (0 on an unused axis)."""
     if comp < 0:
@@ -302,7 +302,7 @@ def _axis_cell(x, comp, corner, inv_size, cells):
     return _cell_index(x[comp], corner, inv_size, cells)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _axis_gap(x, comp, c, cells, corner, size):
     """Squared distance from x to cell c along one bucket axis (the end cells reach infinity)."""
     if comp < 0:
@@ -319,7 +319,7 @@ def _axis_gap(x, comp, c, cells, corner, size):
     return 0.0
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _ring_bound(x, comp, c, r, cells, corner, size):
     """Nearest that cells r steps from cell c along one axis can be to x (inf: none exist)."""
     if comp < 0:
@@ -334,7 +334,7 @@ def _ring_bound(x, comp, c, r, cells, corner, size):
     return bound
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _scan_cell(weights, x, cell, head, links, grid, origin, window, whole, periods, best,
                best_dist, best_rank):
     """Fold the nodes filed under `cell` into the running (distance, scan rank) minimum.
@@ -358,7 +358,7 @@ def _scan_cell(weights, x, cell, head, links, grid, origin, window, whole, perio
     return best, best_dist, best_rank
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def find_winner_buckets(weights, x, grid, origin, window, periods, b):
     """`find_winner` through the inverse map b: the same node (ties: first in scan order).
 
@@ -410,7 +410,7 @@ def find_winner_buckets(weights, x, grid, origin, window, periods, b):
 
 # ----------------------------------------------------------------------------- the update
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _update_run(flat, d, i0, n, x, alpha, row_q, tables, t0):
     """The separable path's update of nodes i0 .. i0 + n - 1 for the paper's target x (no
     coherent target, range kernel, periodic component or bounds): m += alpha h (x - m) with
@@ -446,7 +446,7 @@ def _update_run(flat, d, i0, n, x, alpha, row_q, tables, t0):
             w[j * d + k] = m + (alpha * (row_q[k] * tables[k, 2, t0 + j])) * (x[k] - m)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _refile_run(flat, d, i0, n, b, cells):
     """Refile nodes i0 .. i0 + n - 1 in the inverse map b (as `_bucket_of` and `_bucket_move`
     node by node, in the same order): their cells computed axis by axis into the int64 scratch
@@ -469,7 +469,7 @@ def _refile_run(flat, d, i0, n, b, cells):
             _bucket_move(b.head, links, i0 + j, cells[j])
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _row_hmax(row_q, tables, j):
     """Largest component weight at axis-2 table position j of a row (separable path)."""
     hmax = 0.0
@@ -478,7 +478,7 @@ def _row_hmax(row_q, tables, j):
     return hmax
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _axis_range(c, radius, g, wrap):
     """Offsets [lo, hi] of the update box along one axis around winner coordinate c."""
     if wrap:
@@ -489,7 +489,7 @@ def _axis_range(c, radius, g, wrap):
     return max(-radius, -c), min(radius, g - 1 - c)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _update_box(c, sigma, p, frame, tables, bounds):
     """The update's box around winner c, as offsets bounds[0] <= D <= bounds[1], and on the
     separable path the 1D factors tables[k, a, D_a - bounds[0, a]] = exp(-A_k,aa D_a^2 / 2
@@ -520,7 +520,7 @@ def _update_box(c, sigma, p, frame, tables, bounds):
     return c0, c1, c2
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def update_neighbourhood(weights, c, x, alpha, sigma, p, tables, scratch, bounds, b, refile):
     """m_i += h_ci (target_i - m_i) for the nodes around winner c (one OS-Map step, eq. 1-4).
 
@@ -625,7 +625,7 @@ def update_neighbourhood(weights, c, x, alpha, sigma, p, tables, scratch, bounds
                 start = stop + 1
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def update_classic(weights, flat, c, x, alpha, sigma, p, tables, scratch, bounds, cells, b,
                    refile):
     """`update_neighbourhood` for the separable path with the paper's target x and nothing else
@@ -678,7 +678,7 @@ def update_classic(weights, flat, c, x, alpha, sigma, p, tables, scratch, bounds
                 start = stop + 1
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def is_classic(p):
     """The classic SOM update (separable, target x, nothing else): `update_classic` applies."""
     classic = p.separable and p.range_a == 0.0 and p.range_b == 0.0 and p.quad.shape[0] == 1

@@ -51,10 +51,13 @@ LAZY_COMMANDS: dict[str, tuple[str, str, str]] = {
                 "Fit a quad grid (an OS-Map) to a point-sampled surface."),
     "presets": ("osmap_cli.commands.presets", "presets_command",
                 "List or show the tuning presets."),
+    "warmup": ("osmap_cli.commands.warmup", "warmup_command",
+               "Compile the synth kernels now, not on the first synth."),
 }
 
 # The order of `osmap --help`'s command list.
-COMMAND_ORDER = ("synth", "inpaint", "tileable", "solid", "apply", "info", "surface", "presets")
+COMMAND_ORDER = ("synth", "inpaint", "tileable", "solid", "apply", "info", "surface", "presets",
+                 "warmup")
 
 CONTEXT_SETTINGS = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
 

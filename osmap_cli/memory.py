@@ -19,12 +19,13 @@ BASE_BYTES = 200 * 2**20  # interpreter, NumPy, Numba and compiled kernels
 
 
 def texture_bytes(width: int, height: int, channels: int, extra_channels: int = 0) -> int:
-    """Peak working set of `osmap synth` for a WxH output (BENCHMARKS.md "Memory": about 90 to
-    125 bytes per pixel above the libraries at 512 to 1024 px, 3 channels): positions, costs,
-    features and k-NN candidates per pixel, the output and its converted copy per channel, and
+    """Peak working set of `osmap synth` for a WxH output (BENCHMARKS.md "Memory" and "Large
+    outputs": about 114 bytes per pixel above the libraries at 1024 px and 109 at 4096 px, 3
+    channels; this estimate: 124, about 10 % above): positions, the Jacobian field, copy-region
+    labels and extents per pixel, the output and its converted copy per channel, and
     EXTRA_CHANNELS of --with maps and --uv-out rendered beside it."""
     pixels = int(width) * int(height)
-    return BASE_BYTES + pixels * (96 + 20 * int(channels) + 12 * int(extra_channels))
+    return BASE_BYTES + pixels * (88 + 12 * int(channels) + 12 * int(extra_channels))
 
 
 def volume_bytes(shape, channels: int, feature_dims: int) -> int:

@@ -115,3 +115,12 @@ def json_lines(text: str) -> list[dict]:
     import json
 
     return [json.loads(line) for line in text.splitlines()]
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _synth_kernels_compiled():
+    """Compile the synth kernels once, up front and two at a time, if Numba's cache lacks them:
+    the tests then never see the first-run announcement on stderr."""
+    from osmap_cli.synth.warm import ensure_compiled
+
+    ensure_compiled()

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import sys
 from dataclasses import dataclass
 
 from osmap_cli.batch import Job
@@ -34,6 +35,10 @@ def read_also(paths, image, exemplar: str) -> tuple:
                              f"{image.pixels.shape[2]} (--also exemplars need the same)")
         out.append(other)
     return tuple(out)
+
+
+def _announce(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
 
 
 def _refuse_jpeg_channels(path: str, names) -> None:
@@ -118,6 +123,10 @@ class SynthJob(Job):
     def compute(self, inputs: _Inputs):
         from osmap_cli import synth
         from osmap_cli.progress import ProgressBar
+        from osmap_cli.synth.warm import ensure_compiled
+
+        # a first run compiles the kernels (two processes at once) and says so, unless --quiet
+        ensure_compiled(None if self.quiet else _announce)
 
         with ProgressBar(enabled=self.progress, desc=self.label) as progress:
             if inputs.also:

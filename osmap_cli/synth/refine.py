@@ -29,9 +29,12 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
 
     `constraint` (osmap_cli.synth.constraints.LevelConstraint, optional) pins some pixels to
     known positions and forbids some exemplar positions (inpainting, tileable photos)."""
+    # C order whatever made pos (upsample's arithmetic keeps a strided layout): the kernels then
+    # compile, load and run for one array layout only
+    pos = np.ascontiguousarray(pos, np.float32)
     knn = similar_positions(feat, lo, hi, opts.knn, MAX_KNN_REFERENCES)
     if opts.knn == 0:
-        knn = knn[:, :, :0]
+        knn = np.ascontiguousarray(knn[:, :, :0])  # one array layout for the kernel
     # seam penalty unit: a whole window's feature variance, shared among the 8 neighbours
     variance = feature_variance([feat])
     window = (2 * opts.patch_radius + 1) ** 2

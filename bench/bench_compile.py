@@ -1,0 +1,133 @@
+"""Where a first run's time goes: the Numba compile of each kernel, and what a warm run loads.
+
+Each measurement is a fresh process with NUMBA_CACHE_DIR pointed at an empty folder, running a
+default 256x256 `synthesize` from a shipped sample with one Numba thread (so that every compile
+happens in the calling thread, whose CPU time is then the compile's). Reported:
+
+- compile CPU seconds of each kernel the run calls (time.thread_time() around the first call
+  of each dispatcher, callees included), and the signatures it compiled for;
+- the two groups that `osmap_cli.synth.warm` compiles side by side, each alone (CPU seconds);
+- a warm process: seconds to import numba, and to load each kernel from the cache.
+
+    python bench/bench_compile.py [--quick]
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tempfile
+
+import common
+from common import SAMPLES_DIR, fmt, md_table
+
+COMMAND = ".venv/bin/python bench/run.py --only compile"
+
+PROBE = r"""
+import json, sys, time
+from numba.core import dispatcher
+orig = dispatcher.Dispatcher._compile_for_args
+times = {}
+def wrapped(self, *a, **k):
+    t = time.thread_time()
+    try:
+        return orig(self, *a, **k)
+    finally:
+        key = self.py_func.__module__.split(".")[-1] + "." + self.py_func.__qualname__
+        times.setdefault(key, [0.0, 0])
+        times[key][0] += time.thread_time() - t
+        times[key][1] = len(self.signatures)
+dispatcher.Dispatcher._compile_for_args = wrapped
+from osmap_cli.imageio import read_image
+from osmap_cli.synth import SynthOptions, synthesize
+image = read_image(sys.argv[1]).pixels
+synthesize(image, SynthOptions(width=256, height=256, seed=1))
+print(json.dumps(times))
+"""
+
+LOADS = r"""
+import json, sys, time
+t0 = time.perf_counter()
+import numba
+t1 = time.perf_counter()
+from numba.core import dispatcher
+orig = dispatcher.Dispatcher.compile
+loads = {}
+def wrapped(self, sig):
+    t = time.perf_counter()
+    try:
+        return orig(self, sig)
+    finally:
+        key = self.py_func.__module__.split(".")[-1] + "." + self.py_func.__qualname__
+        loads[key] = loads.get(key, 0.0) + time.perf_counter() - t
+dispatcher.Dispatcher.compile = wrapped
+from osmap_cli.imageio import read_image
+from osmap_cli.synth import SynthOptions, synthesize
+image = read_image(sys.argv[1]).pixels
+t2 = time.perf_counter()
+synthesize(image, SynthOptions(width=256, height=256, seed=1))
+t3 = time.perf_counter()
+synthesize(image, SynthOptions(width=256, height=256, seed=1))
+t4 = time.perf_counter()
+print(json.dumps({"numba": t1 - t0, "loads": loads, "first": t3 - t2, "second": t4 - t3}))
+"""
+
+
+def _python(code: str, *args, env=None) -> dict:
+    done = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True,
+                          env=env, check=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def _group_cpu(group: str, env: dict) -> float:
+    import resource
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run([sys.executable, "-m", "osmap_cli.synth.warm", group], env=env, check=True)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def run(quick: bool = False, log=print) -> str:
+    import os
+
+    sample = SAMPLES_DIR / "cells.png"
+    base = dict(os.environ, NUMBA_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    with tempfile.TemporaryDirectory(dir=common.tmp_root()) as cache:
+        log("[compile] per-kernel compile, empty cache")
+        times = _python(PROBE, str(sample), env=dict(base, NUMBA_CACHE_DIR=cache))
+        log("[compile] warm loads")
+        warm = _python(LOADS, str(sample), env=dict(base, NUMBA_CACHE_DIR=cache))
+    groups = {}
+    for group in ("organise", "refine"):
+        with tempfile.TemporaryDirectory(dir=common.tmp_root()) as cache:
+            log(f"[compile] group {group} alone")
+            groups[group] = _group_cpu(group, dict(base, NUMBA_CACHE_DIR=cache))
+    rows = [[f"`{name}`", fmt(cpu, 1), count, fmt(warm["loads"].get(name), 3)]
+            for name, (cpu, count) in sorted(times.items(), key=lambda kv: -kv[1][0])]
+    total = sum(cpu for cpu, _ in times.values())
+    rows.append(["total", fmt(total, 1), "", fmt(sum(warm["loads"].values()), 3)])
+    return "\n".join([
+        "## Compile: where a first run's time goes", "",
+        f"_{common.stamp()}; reproduce with `{COMMAND}`; load average (1 min) at the end: "
+        f"{common.load_average()} (CPU seconds are less affected by a busy machine than wall "
+        "seconds)._", "",
+        "A default 256x256 `synthesize` of `samples/cells.png` in a fresh process with an empty "
+        "NUMBA_CACHE_DIR and one Numba thread: *compile CPU s* is the calling thread's CPU time "
+        "in each kernel's first call (its callees included); *load s* is the wall time to load "
+        "it from the cache in a later, warm process (the first load also sets up Numba's CPU "
+        "target, about half a second, whichever kernel comes first).", "",
+        md_table(["kernel", "compile CPU s", "signatures", "warm load s"], rows),
+        "A first `osmap synth` compiles the kernels in two groups at once, one in a child "
+        "process (`osmap_cli.synth.warm`); each group alone, in a fresh process (CPU s, "
+        "interpreter and imports included): "
+        + ", ".join(f"{g} {fmt(s, 1)}" for g, s in groups.items())
+        + ". On two idle cores the compile's wall time is about the larger one.", "",
+        f"Warm process: `import numba` {fmt(warm['numba'], 2)} s; the first 256x256 "
+        f"`synthesize` (kernels loaded from the cache) {fmt(warm['first'], 2)} s, a second one "
+        f"in the same process {fmt(warm['second'], 2)} s (one thread).", "",
+    ])
+
+
+if __name__ == "__main__":
+    print(run(quick="--quick" in sys.argv, log=lambda m: print(m, file=sys.stderr)))

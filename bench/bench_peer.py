@@ -1,0 +1,109 @@
+"""osmap against the fastest peer, the Resynthesizer engine, run side by side.
+
+The peer is a command kept outside the repository (../shared/peers/resynth/resynth_cli, see its
+README there); the section is skipped with a note when it is absent. For every shipped sample
+and output size, `osmap synth` (warm Numba cache) and the peer run in turn, A B A B ..., each a
+fresh process timed from outside (start-up included); the ratio osmap / peer is taken pair by
+pair, so a drift of the shared machine's speed cancels. Reported: each case's median pair
+ratio, and their geometric mean per size.
+
+    python bench/bench_peer.py [--quick] [--runs N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import shutil
+import statistics
+import sys
+import tempfile
+from pathlib import Path
+
+import common
+from common import SAMPLES_DIR, SHARED_DIR, fmt, md_table, timed_run
+
+PEER = SHARED_DIR / "peers" / "resynth" / "resynth_cli"
+# (output side, shipped samples): 128 px exemplars -> 256x256, 256 px exemplars -> 512x512
+CASES = ((256, ("cells", "brick", "weave", "grass", "gravel", "wood_top")),
+         (512, ("grass_256", "brick_256", "gravel_256")))
+QUICK_CASES = ((256, ("cells", "brick")), (512, ("grass_256",)))
+COMMAND = ".venv/bin/python bench/run.py --only peer"
+
+
+def _geomean(values):
+    return math.exp(sum(math.log(v) for v in values) / len(values)) if values else float("nan")
+
+
+def run(quick: bool = False, runs: int | None = None, log=print) -> str:
+    title = "## Against the Resynthesizer engine (peer)"
+    if not PEER.exists():
+        log(f"[peer] {PEER} not found: section skipped")
+        return (f"{title}\n\n_Skipped on {common.stamp()}: the peer command "
+                f"`{common.shared_rel(PEER)}` is not present on this machine._\n")
+    osmap = common.osmap_cli()
+    if osmap is None:
+        raise RuntimeError("the osmap CLI is not installed next to this interpreter")
+    runs = runs or (2 if quick else 3)
+    load_start = common.load_average()
+    cases = QUICK_CASES if quick else CASES
+    work = Path(tempfile.mkdtemp(prefix="osmap-peer-", dir=common.tmp_root()))
+    env = dict(os.environ)
+    rows, by_size = [], {}
+    try:
+        for size, names in cases:
+            for name in names:
+                sample = SAMPLES_DIR / f"{name}.png"
+                ours = [str(osmap), "synth", str(sample), "-o", str(work / "osmap.png"),
+                        "--size", str(size), "--seed", "1", "--quiet"]
+                peer = [str(PEER), str(sample), str(work / "peer.png"), str(size), str(size)]
+                timed_run(ours, env=env)  # warm the kernel cache and the file cache
+                timed_run(peer, env=env)
+                walls, cpus, ratios, cpu_ratios = [], [], [], []
+                for _ in range(runs):
+                    a_wall, a_cpu = timed_run(ours, env=env)
+                    b_wall, b_cpu = timed_run(peer, env=env)
+                    walls.append((a_wall, b_wall))
+                    cpus.append((a_cpu, b_cpu))
+                    ratios.append(a_wall / b_wall)
+                    cpu_ratios.append(a_cpu / b_cpu)
+                ratio, cpu_ratio = statistics.median(ratios), statistics.median(cpu_ratios)
+                by_size.setdefault(size, []).append((ratio, cpu_ratio))
+                log(f"[peer] {name} -> {size}: osmap/peer wall {ratio:.2f}, cpu {cpu_ratio:.2f}")
+                rows.append([f"{name} -> {size}x{size}",
+                             fmt(statistics.median(w for w, _ in walls)),
+                             fmt(statistics.median(w for _, w in walls)),
+                             fmt(ratio), fmt(cpu_ratio)])
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    summary = [[f"{size}x{size} ({len(v)} samples, geometric mean)",
+                fmt(_geomean([r for r, _ in v])), fmt(_geomean([c for _, c in v]))]
+               for size, v in by_size.items()]
+    return "\n".join([
+        title, "",
+        f"_{common.stamp()}; reproduce with `{COMMAND}{' --quick' if quick else ''}`; load "
+        f"average (1 min) at start / end: {load_start} / {common.load_average()} (the peer runs "
+        "up to 8 threads, osmap one per core: on a busy machine the peer gets the larger share "
+        "of the CPU, and the wall ratios grow)._", "",
+        "`osmap synth EXEMPLAR -o OUT --size N --seed 1 --quiet` (warm Numba cache) and the "
+        "Resynthesizer engine (`resynth_cli EXEMPLAR OUT N N`, its defaults; outside the "
+        "repository, used only to measure) on the shipped samples, each a fresh process timed "
+        f"from outside, run in turn {runs} times after one untimed run each; ratios are "
+        "osmap / peer, pair by pair, medians (below 1: osmap is faster).", "",
+        md_table(["size", "osmap / peer wall", "osmap / peer CPU"], summary),
+        md_table(["case", "osmap wall s", "peer wall s", "wall ratio", "CPU ratio"], rows),
+    ])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--runs", type=int, default=None)
+    args = ap.parse_args(argv)
+    print(run(quick=args.quick, runs=args.runs, log=lambda m: print(m, file=sys.stderr)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
