@@ -110,10 +110,10 @@ class FillJob(SynthJob):
     def compute(self, inputs):
         from osmap_cli.progress import ProgressBar
         from osmap_cli.synth.fill import fill
-        from osmap_cli.synth.job import _announce
+        from osmap_cli.synth.job import announce
         from osmap_cli.synth.warm import ensure_compiled
 
-        ensure_compiled(None if self.quiet else _announce)  # as osmap synth: said, in parallel
+        ensure_compiled(None if self.quiet else announce)  # as osmap synth: said, in parallel
         options = self.sized(inputs).options
         with ProgressBar(enabled=self.progress, desc=self.label) as progress:
             return fill(inputs.image.pixels, inputs.free, options,

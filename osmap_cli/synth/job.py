@@ -37,7 +37,7 @@ def read_also(paths, image, exemplar: str) -> tuple:
     return tuple(out)
 
 
-def _announce(line: str) -> None:
+def announce(line: str) -> None:
     print(line, file=sys.stderr, flush=True)
 
 
@@ -126,7 +126,7 @@ class SynthJob(Job):
         from osmap_cli.synth.warm import ensure_compiled
 
         # a first run compiles the kernels (two processes at once) and says so, unless --quiet
-        ensure_compiled(None if self.quiet else _announce)
+        ensure_compiled(None if self.quiet else announce)
 
         with ProgressBar(enabled=self.progress, desc=self.label) as progress:
             if inputs.also:
