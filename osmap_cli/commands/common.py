@@ -244,6 +244,55 @@ def claim_output(owners: dict, path: str, exemplar: str) -> None:
     owners[key] = exemplar
 
 
+def parse_withs(with_maps) -> list:
+    """The --with values as materials.WithMap records; a bad one or a repeated NAME is a usage
+    error."""
+    from osmap_cli.materials import parse_with
+
+    withs = []
+    for spec in with_maps:
+        try:
+            withs.append(parse_with(spec))
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="'--with'") from None
+    if len({w.name for w in withs}) != len(withs):
+        raise click.BadParameter("two maps with the same NAME", param_hint="'--with'")
+    return withs
+
+
+def image_outputs(source: str, fields: dict, output, out_dir, name_template, uv_out, withs,
+                  bit_depth, owners: dict):
+    """(main output, [(WithMap, map output)], uv output or None) of one image input, every path
+    and format checked and claimed in `owners` before any work (osmap synth, inpaint, tileable)."""
+    from osmap_cli.imageio import output_format
+    from osmap_cli.materials import WithMap, expand_path, with_output_path
+
+    if output is not None:
+        main = output
+        uv = fill_template(uv_out, fields, "'--uv-out'") if uv_out else None
+    else:
+        main = os.path.join(out_dir, fill_template(name_template or "{stem}.{ext}", fields,
+                                                   "'--name'"))
+        uv = (os.path.join(out_dir, fill_template(uv_out, fields, "'--uv-out'"))
+              if uv_out else None)
+    maps = [(WithMap(w.name, expand_path(w.path, source)), with_output_path(main, w.name))
+            for w in withs]
+    output_format(main, None, 1)
+    if bit_depth is not None:
+        try:
+            output_format(main, int(bit_depth), 1)
+        except OsmapError as exc:
+            raise click.BadParameter(str(exc), param_hint="'--bit-depth'") from None
+    if uv is not None:
+        if os.path.abspath(uv) == os.path.abspath(main):
+            raise click.BadParameter(f"{uv}: is the same file as --output",
+                                     param_hint="'--uv-out'")
+        output_format(uv, 32, 2)
+    for path in [main, *(o for _, o in maps), *([uv] if uv else [])]:
+        claim_output(owners, path, source)
+    return main, maps, uv
+
+
 def real_paths(paths) -> set[str]:
     """The resolved paths of the given (None skipped): the inputs no output may replace."""
     return {os.path.realpath(p) for p in paths if p}

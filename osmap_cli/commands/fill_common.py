@@ -10,12 +10,12 @@ import click
 from osmap_cli.commands.common import (
     batch_options,
     check_destination,
-    claim_output,
     cluster_spec,
     expand_inputs,
-    fill_template,
+    image_outputs,
     input_fields,
     load_preset,
+    parse_withs,
     real_paths,
     refusal,
     resolve_options,
@@ -23,7 +23,6 @@ from osmap_cli.commands.common import (
     show_progress,
     tuning_flags,
 )
-from osmap_cli.errors import OsmapError
 from osmap_cli.synth.options import QUALITIES, SynthOptions
 
 __all__ = ["NAME_FIELDS", "OSMAP_ONLY", "fill_options", "plan_fill"]
@@ -91,7 +90,7 @@ def plan_fill(mode: str, images, output, out_dir, name_template, jobs, fail_fast
               overwrite, scheduler, scheduler_file, threads, seed, preset, quality, bit_depth,
               with_maps, uv_out, quiet, tuning, *, mask=None, border=0) -> int:
     """Check every option, plan every output, run one FillJob per image; the exit code."""
-    from osmap_cli.materials import WithMap, expand_path, parse_with, with_output_path
+    from osmap_cli.materials import expand_path
     from osmap_cli.presets import is_preset_path
     from osmap_cli.synth.fill_job import FillJob
 
@@ -100,51 +99,21 @@ def plan_fill(mode: str, images, output, out_dir, name_template, jobs, fail_fast
     options = resolve_options(SynthOptions, loaded.values,
                               {"seed": seed, "quality": quality}, tuning)
     inputs = expand_inputs(images)
-    withs = []
-    for spec in with_maps:
-        try:
-            withs.append(parse_with(spec))
-        except ValueError as exc:
-            raise click.BadParameter(str(exc), param_hint="'--with'") from None
-    if len({w.name for w in withs}) != len(withs):
-        raise click.BadParameter("two maps with the same NAME", param_hint="'--with'")
+    withs = parse_withs(with_maps)
     if uv_out is not None and os.path.splitext(uv_out)[1].lower() != ".exr":
         raise click.BadParameter(f"{uv_out}: must be an .exr file", param_hint="'--uv-out'")
     check_destination(output, out_dir, len(inputs), name_template, overwrite)
     preset_name = os.path.basename(preset) if is_preset_path(preset) else preset
     preset_values = None if is_preset_path(preset) else dict(loaded.values)
 
-    from osmap_cli.imageio import output_format
-
     plans, owners = [], {}
     for index, image in enumerate(inputs, 1):
         base = input_fields(image, index)
         fields = {**base, "ext": os.path.splitext(base["name"])[1].lstrip(".").lower(),
                   "seed": options.seed, "preset": preset_name, "quality": options.quality}
-        if output is not None:
-            main = output
-            uv = fill_template(uv_out, fields, "'--uv-out'") if uv_out else None
-        else:
-            main = os.path.join(out_dir, fill_template(name_template or "{stem}.{ext}", fields,
-                                                       "'--name'"))
-            uv = (os.path.join(out_dir, fill_template(uv_out, fields, "'--uv-out'"))
-                  if uv_out else None)
-        maps = [(WithMap(w.name, expand_path(w.path, image)), with_output_path(main, w.name))
-                for w in withs]
-        output_format(main, None, 1)
-        if bit_depth is not None:
-            try:
-                output_format(main, int(bit_depth), 1)
-            except OsmapError as exc:
-                raise click.BadParameter(str(exc), param_hint="'--bit-depth'") from None
-        if uv is not None:
-            if os.path.abspath(uv) == os.path.abspath(main):
-                raise click.BadParameter(f"{uv}: is the same file as --output",
-                                         param_hint="'--uv-out'")
-            output_format(uv, 32, 2)
+        main, maps, uv = image_outputs(image, fields, output, out_dir, name_template, uv_out,
+                                       withs, bit_depth, owners)
         image_mask = expand_path(mask, image) if mask not in (None, "alpha") else mask
-        for path in [main, *(o for _, o in maps), *([uv] if uv else [])]:
-            claim_output(owners, path, image)
         plans.append((image, main, maps, uv, image_mask))
 
     input_paths = real_paths([*inputs, *(s.path for _, _, ms, _, _ in plans for s, _ in ms),

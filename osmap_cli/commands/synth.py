@@ -15,12 +15,12 @@ from osmap_cli.commands.common import (
     SizeType,
     batch_options,
     check_destination,
-    claim_output,
     cluster_spec,
     expand_inputs,
-    fill_template,
+    image_outputs,
     input_fields,
     load_preset,
+    parse_withs,
     real_paths,
     refusal,
     resolve_options,
@@ -28,7 +28,6 @@ from osmap_cli.commands.common import (
     show_progress,
     tuning_flags,
 )
-from osmap_cli.errors import OsmapError
 from osmap_cli.options import option_spec
 from osmap_cli.synth.options import METHODS, QUALITIES, SynthOptions
 
@@ -216,17 +215,8 @@ def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str |
     _check_also(also, with_maps, uv_out, orientation_field or scale_field, method)
 
     # 2. the inputs and where their outputs go
-    from osmap_cli.materials import parse_with
-
     inputs = expand_inputs(exemplars)
-    withs = []
-    for spec in with_maps:
-        try:
-            withs.append(parse_with(spec))
-        except ValueError as exc:
-            raise click.BadParameter(str(exc), param_hint="'--with'") from None
-    if len({w.name for w in withs}) != len(withs):
-        raise click.BadParameter("two maps with the same NAME", param_hint="'--with'")
+    withs = parse_withs(with_maps)
 
     from osmap_cli.presets import is_preset_path
     from osmap_cli.synth.job import SynthJob
@@ -296,9 +286,6 @@ def _plan_outputs(inputs, output, out_dir, name_template, uv_out, withs, options
                   bit_depth, overwrite):
     """[(exemplar, output, [(WithMap, map output)], uv output)] for every input, checked
     before any work: output paths, formats, bit depths, collisions."""
-    from osmap_cli.imageio import output_format
-    from osmap_cli.materials import WithMap, expand_path, with_output_path
-
     if uv_out is not None and os.path.splitext(uv_out)[1].lower() != ".exr":
         raise click.BadParameter(f"{uv_out}: must be an .exr file", param_hint="'--uv-out'")
     check_destination(output, out_dir, len(inputs), name_template, overwrite)
@@ -307,28 +294,7 @@ def _plan_outputs(inputs, output, out_dir, name_template, uv_out, withs, options
     owners: dict[str, str] = {}
     for index, exemplar in enumerate(inputs, 1):
         fields = _name_fields(exemplar, index, options, preset_name)
-        if output is not None:
-            main = output
-            uv = fill_template(uv_out, fields, "'--uv-out'") if uv_out else None
-        else:
-            main = os.path.join(out_dir, fill_template(name_template or "{stem}.{ext}", fields,
-                                                       "'--name'"))
-            uv = (os.path.join(out_dir, fill_template(uv_out, fields, "'--uv-out'"))
-                  if uv_out else None)
-        maps = [(WithMap(w.name, expand_path(w.path, exemplar)), with_output_path(main, w.name))
-                for w in withs]
-        output_format(main, None, 1)
-        if bit_depth is not None:
-            try:
-                output_format(main, int(bit_depth), 1)
-            except OsmapError as exc:
-                raise click.BadParameter(str(exc), param_hint="'--bit-depth'") from None
-        if uv is not None:
-            if os.path.abspath(uv) == os.path.abspath(main):
-                raise click.BadParameter(f"{uv}: is the same file as --output",
-                                         param_hint="'--uv-out'")
-            output_format(uv, 32, 2)
-        for path in [main, *(o for _, o in maps), *([uv] if uv else [])]:
-            claim_output(owners, path, exemplar)
+        main, maps, uv = image_outputs(exemplar, fields, output, out_dir, name_template,
+                                       uv_out, withs, bit_depth, owners)
         plans.append((exemplar, main, maps, uv))
     return plans
