@@ -21,10 +21,11 @@ ALIGN_RADIUS = 1
 # the time.
 MAX_KNN_REFERENCES = 2048
 # guide cost of a whole mismatch (guide difference 1) at guide_weight 1, in window feature
-# variances: 1.5 times a random window's expected SSD (2 variances); on the two-material test
-# (tests/test_guide.py) weight 1 keeps every pixel of each half in its material, 1/3 lets the
-# larger copies spill over a fifth of the other half
-GUIDE_UNIT = 3.0
+# variances: 0.75 times a random window's expected SSD (2 variances). On the two-material test
+# (tests/test_guide.py, seeds 1-3) weight 1 keeps 97-100 % of each half in its material with
+# texmetrics coherence 1.2-1.8x unguided; twice this unit gave 100 % but 1.4-1.8x; 0.6 of it
+# let the larger copies spill over 8-28 % of the other half
+GUIDE_UNIT = 1.5
 # unguided: the kernel's guide arrays (not read when the guide weight is 0)
 _NO_GUIDE = np.zeros((1, 1), np.float32)
 
