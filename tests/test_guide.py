@@ -4,6 +4,7 @@ clear line."""
 
 from __future__ import annotations
 
+import json
 import os
 import shlex
 from pathlib import Path
@@ -163,3 +164,15 @@ def test_help_shows_the_guide_flags(run_cli):
     for flag in ("--guide GUIDE", "--target-guide GUIDE", "--guide-weight", "Guided synthesis"):
         assert flag in text
     assert "--target-guide photo.jpg" in text
+
+
+def test_cli_batch_follows_one_target_guide(run_cli, workdir):
+    result = run_cli("synth", "ex.png", "ex_guide.png", "--out-dir", "b", "--target-guide",
+                     "target.png", "--size", "24", "--json")
+    assert result.code == 0, result.err
+    records = [json.loads(line) for line in result.out.splitlines() if line.strip()]
+    assert len(records) == 2
+    for record in records:
+        assert record["target_guide"] == "target.png" and "guide" not in record
+        assert record["options"]["guide_weight"] == 1.0
+    assert Path("b/ex.png").exists() and Path("b/ex_guide.png").exists()
