@@ -30,8 +30,10 @@ from osmap_kernels.common import EIGHT_NEIGHBOURS, hash_uniform, neighbour, samp
 #   parity    int64    which checkerboard colour this pass updates
 #   seam      float64  cost added per 8-neighbour whose position does not continue the candidate
 #   max_area  float64  copy regions larger than this (pixels) are penalised as they grow
+#   guide     float64  cost per squared guide difference (exemplar guide at the candidate vs
+#                      output guide at the pixel); 0: unguided (the guide arrays are not read)
 RefineParams = namedtuple("RefineParams",
-                          "radius lam wrap lo hi n_random seed salt parity seam max_area")
+                          "radius lam wrap lo hi n_random seed salt parity seam max_area guide")
 
 
 @njit(cache=True, inline="always")
@@ -64,9 +66,22 @@ def _seam_penalty(src, area, y, x, cy, cx, J, p):
 
 
 @njit(cache=True, inline="always")
-def _total_cost(src, area, y, x, feat, cy, cx, J, nb, nb_ok, occ, p, best, buf):
-    """Matching cost of candidate (cy, cx) for pixel (y, x) plus its seam penalty."""
-    seam = _seam_penalty(src, area, y, x, cy, cx, J, p)
+def _guide_penalty(gex, gout, y, x, cy, cx, p):
+    """p.guide times the squared difference between the exemplar guide at the candidate's
+    nearest pixel and the output guide at (y, x); 0 when unguided."""
+    if p.guide == 0.0:
+        return 0.0
+    iy = min(max(int(cy + 0.5), 0), gex.shape[0] - 1)
+    ix = min(max(int(cx + 0.5), 0), gex.shape[1] - 1)
+    d = gex[iy, ix] - gout[y, x]
+    return p.guide * d * d
+
+
+@njit(cache=True, inline="always")
+def _total_cost(src, area, y, x, feat, cy, cx, J, nb, nb_ok, occ, p, best, buf, gex, gout):
+    """Matching cost of candidate (cy, cx) for pixel (y, x) plus its seam and guide penalties."""
+    seam = _seam_penalty(src, area, y, x, cy, cx, J, p) + _guide_penalty(gex, gout, y, x, cy,
+                                                                          cx, p)
     if seam >= best:
         return np.inf
     return seam + _candidate_cost(feat, cy, cx, J, p.radius, nb, nb_ok, occ, p.lam, best - seam,
@@ -102,19 +117,21 @@ def _candidate_cost(feat, cy, cx, jac, radius, nb, nb_ok, occ, lam, best, buf):
     return total * factor
 
 
-def refine_pass(src, dst, feat, jac, knn, occ, area, p):
+def refine_pass(src, dst, feat, jac, knn, occ, area, gex, gout, p):
     """One red-black pass: for pixels of colour p.parity, write the best candidate into dst.
 
     src, dst float32[H, W, 2] (dst must be a copy of src); feat float32[h, w, F] exemplar
     appearance; jac float32[H, W, 2, 2] output-to-exemplar Jacobian per pixel; knn int32[h, w, k, 2]
     similar exemplar positions; occ float32[h, w] occupancy; area float32[H, W] the size of each
-    pixel's copy region (copy_region_areas). Row bands run on osmap_kernels.bands' threads.
+    pixel's copy region (copy_region_areas); gex float32[h, w] and gout float32[H, W] the
+    exemplar and output guides, read only when p.guide != 0 (unguided: pass (1, 1) zeros).
+    Row bands run on osmap_kernels.bands' threads.
     """
-    run_bands(_refine_rows, src.shape[0], src, dst, feat, jac, knn, occ, area, p)
+    run_bands(_refine_rows, src.shape[0], src, dst, feat, jac, knn, occ, area, gex, gout, p)
 
 
 @njit(cache=True, nogil=True)
-def _refine_rows(src, dst, feat, jac, knn, occ, area, p, y0, y1):
+def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, y0, y1):
     """refine_pass on rows y0 <= y < y1 (reads src, writes only those rows of dst)."""
     H, W = src.shape[0], src.shape[1]
     nf = feat.shape[2]
@@ -143,7 +160,8 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, p, y0, y1):
 
             by = src[y, x, 0]
             bx = src[y, x, 1]
-            best = _total_cost(src, area, y, x, feat, by, bx, J, nb, nb_ok, occ, p, np.inf, buf)
+            best = _total_cost(src, area, y, x, feat, by, bx, J, nb, nb_ok, occ, p, np.inf, buf,
+                               gex, gout)
             y0 = by
             x0 = bx
             n_seen = 0
@@ -173,7 +191,7 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, p, y0, y1):
                     n_seen += 1
                     if cy != y0 or cx != x0:
                         cost = _total_cost(src, area, y, x, feat, cy, cx, J, nb, nb_ok, occ, p,
-                                           best, buf)
+                                           best, buf, gex, gout)
                         if cost < best:
                             best, by, bx = cost, cy, cx
                     iy = int(cy + 0.5)
@@ -184,7 +202,7 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, p, y0, y1):
                         ky = _clamp(knn[iy, ix, j, 0] + fy, p.lo[0], p.hi[0])
                         kx = _clamp(knn[iy, ix, j, 1] + fx, p.lo[1], p.hi[1])
                         cost = _total_cost(src, area, y, x, feat, ky, kx, J, nb, nb_ok, occ, p,
-                                           best, buf)
+                                           best, buf, gex, gout)
                         if cost < best:
                             best, by, bx = cost, ky, kx
             # PatchMatch random search around the best, at halving radii, plus one global draw
@@ -201,7 +219,8 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, p, y0, y1):
                     radius *= 0.5
                 cy = _clamp(np.floor(cy) + (by - np.floor(by)), p.lo[0], p.hi[0])
                 cx = _clamp(np.floor(cx) + (bx - np.floor(bx)), p.lo[1], p.hi[1])
-                cost = _total_cost(src, area, y, x, feat, cy, cx, J, nb, nb_ok, occ, p, best, buf)
+                cost = _total_cost(src, area, y, x, feat, cy, cx, J, nb, nb_ok, occ, p, best, buf,
+                                   gex, gout)
                 if cost < best:
                     best, by, bx = cost, cy, cx
             dst[y, x, 0] = by

@@ -82,13 +82,17 @@ def image_metadata(options, preset: str, exemplar: str, exemplar_shape, args: li
 
     role: "image" (the main output), "with:NAME" (a --with map), or "uv" (--uv-out).
     """
+    recorded = dataclasses.asdict(options)
+    if "target_guide" not in (extra or {}):
+        # unguided: the guide weight plays no part (and the records stay as before it existed)
+        recorded.pop("guide_weight", None)
     meta = {
         **header(command),
         "exemplar": os.path.basename(exemplar),
         "exemplar_size": f"{exemplar_shape[1]}x{exemplar_shape[0]}",
         "preset": preset,
         "seed": str(options.seed),
-        "options": json.dumps(dataclasses.asdict(options), sort_keys=True),
+        "options": json.dumps(recorded, sort_keys=True),
         "role": role,
         "args": shlex.join(args),
     }

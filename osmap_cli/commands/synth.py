@@ -76,6 +76,16 @@ right, G = y up; 8/16-bit: 2v-1). --scale-field multiplies --scale per
 pixel: a gray image (8/16-bit: 0..1 = 0.5..2 as 2^(2v-1), mid gray = 1;
 float: the factor itself). Fields of any size are resized to the output.
 
+\b
+Guided synthesis (docs/guide.md): --target-guide GUIDE makes the output
+follow GUIDE where the exemplar follows its --guide (a painted mask, a
+gradient, a height map; same size as the exemplar). Without --guide the
+exemplar's blurred luminance is its guide, so --target-guide photo.png
+lays the texture out along the photo's shapes. Guides are gray images
+(RGB(A): their luminance), values as stored (8/16-bit: 0..1); GUIDE of
+any size is resized to the output. --guide-weight (default 1) sets how
+strongly the output follows it.
+
 Same inputs, options and seed give the same output, whatever the number of
 threads (NUMBA_NUM_THREADS) or -j, byte for byte in every format. Outputs
 are written atomically: on any error nothing is written for that job.
@@ -102,6 +112,8 @@ Examples:
   osmap synth rock.png -o out/rock.png --with normal=rock_normal.png --with rock_rough.png
   osmap synth samples/weave.png -o out/weave_knot.png --orientation-field knot.png
   osmap synth rock_a.png --also rock_b.png --also rock_c.png -o out/rock.png
+  osmap synth moss_rock.png --guide moss_mask.png --target-guide letters.png -o out/m.png
+  osmap synth samples/cells.png --target-guide photo.jpg -o out/cells_photo.png
 """
 
 
@@ -187,6 +199,13 @@ Examples:
               help="Another exemplar of the same material (same channels): the output draws "
               "from all of them. Repeatable; {stem} {name} {dir} refer to each EXEMPLAR. Not "
               "with --with, --uv-out, control fields or --method paper.")
+@click.option("--target-guide", type=click.Path(path_type=str), default=None, metavar="GUIDE",
+              help="Guided synthesis: the output follows this image (gray, or RGB(A) as its "
+              "luminance; any size, resized to the output) where the exemplar follows its "
+              "--guide; --guide-weight sets how strongly. Not with --also or --method paper.")
+@click.option("--guide", type=click.Path(path_type=str), default=None, metavar="GUIDE",
+              help="The exemplar's guide for --target-guide (one exemplar; same size as it). "
+              "[default: the exemplar's own luminance, blurred and stretched to 0..1]")
 @click.option("-q", "--quiet", is_flag=True,
               help="No progress bar, no summary line, no warnings (errors are still shown).")
 @tuning_flags(SynthOptions)
@@ -198,7 +217,8 @@ def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str |
                   orientation_field: str | None, scale_field: str | None, tileable: bool,
                   quality: str, method: str, bit_depth: str | None,
                   with_maps: tuple[str, ...], uv_out: str | None, also: tuple[str, ...],
-                  quiet: bool, **tuning) -> int:
+                  target_guide: str | None, guide: str | None, quiet: bool,
+                  **tuning) -> int:
     # 1. preset and options (no image work yet)
     cluster = cluster_spec(scheduler, scheduler_file, threads, jobs)
     loaded = load_preset(preset, "synth")
@@ -213,6 +233,7 @@ def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str |
     if (orientation_field or scale_field) and method != "osmap":
         raise click.UsageError("--orientation-field and --scale-field need --method osmap")
     _check_also(also, with_maps, uv_out, orientation_field or scale_field, method)
+    _check_guides(guide, target_guide, also, method, exemplars)
 
     # 2. the inputs and where their outputs go
     inputs = expand_inputs(exemplars)
@@ -229,7 +250,7 @@ def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str |
 
     extra = {exemplar: tuple(expand_path(a, exemplar) for a in also) for exemplar in inputs}
     input_paths = real_paths([*inputs, *(spec.path for _, _, ws, _ in plans for spec, _ in ws),
-                              orientation_field, scale_field,
+                              orientation_field, scale_field, guide, target_guide,
                               *(p for paths in extra.values() for p in paths)])
     job_list = []
     for index, (exemplar, main, maps, uv) in enumerate(plans, 1):
@@ -239,11 +260,27 @@ def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str |
             preset_values=preset_values, bit_depth=bit_depth, uv_out=uv,
             withs=tuple(maps),
             orientation_field=orientation_field, scale_field=scale_field,
+            guide=guide, target_guide=target_guide,
             also=extra[exemplar], replace=output is not None or overwrite, refused=refused,
             progress=show_progress(quiet, jobs),
             quiet=quiet, label="osmap synth" if len(plans) == 1 else os.path.basename(exemplar),
         ))
     return run_batch(job_list, jobs, fail_fast, json_lines, quiet, cluster)
+
+
+def _check_guides(guide, target_guide, also, method, exemplars) -> None:
+    """--guide needs --target-guide and one exemplar; neither goes with --also or paper."""
+    if guide and not target_guide:
+        raise click.UsageError("--guide needs --target-guide (the output's guide)")
+    if not target_guide:
+        return
+    if also:
+        raise click.UsageError("--target-guide does not combine with --also")
+    if method != "osmap":
+        raise click.UsageError("--target-guide needs --method osmap")
+    if guide and (len(exemplars) != 1 or exemplars[0] == "-"):
+        raise click.UsageError("--guide belongs to one exemplar: give exactly one EXEMPLAR "
+                               "(without --guide each exemplar's luminance is its guide)")
 
 
 def _check_also(also, with_maps, uv_out, fields, method) -> None:

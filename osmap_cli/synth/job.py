@@ -54,6 +54,7 @@ class _Inputs:
     maps: list  # [(WithMap, output path, Image)]
     fields: object  # osmap_cli.fields.ControlFields or None
     also: tuple = ()  # Images of --also
+    guides: dict | None = None  # synthesize's guide / target_guide (--guide, --target-guide)
 
 
 @dataclass(frozen=True)
@@ -72,6 +73,8 @@ class SynthJob(Job):
     orientation_field: str | None = None
     scale_field: str | None = None
     also: tuple = ()  # more exemplars of the same material (--also)
+    guide: str | None = None  # the exemplar's guide (--guide)
+    target_guide: str | None = None  # the output's guide (--target-guide)
     replace: bool = True  # False: an existing output makes the job "skipped"
     refused: str | None = None  # why the job must not run (an output would replace an input)
     progress: bool = False
@@ -85,11 +88,18 @@ class SynthJob(Job):
 
     def describe(self) -> dict:
         opts = self.options
+        recorded = dataclasses.asdict(opts)
+        if not self.target_guide:
+            recorded.pop("guide_weight")  # plays no part without a guide
         record = {"input": self.exemplar, "outputs": self.outputs,
                   "size": [opts.width, opts.height], "seed": opts.seed,
-                  "options": {"preset": self.preset, **dataclasses.asdict(opts)}}
+                  "options": {"preset": self.preset, **recorded}}
         if self.also:
             record["also"] = list(self.also)
+        if self.target_guide:
+            record["target_guide"] = self.target_guide
+            if self.guide:
+                record["guide"] = self.guide
         return record
 
     def read(self) -> _Inputs:
@@ -104,7 +114,23 @@ class SynthJob(Job):
                              (self.options.height, self.options.width), self.options.scale)
         if self.also:
             return _Inputs(image, maps, fields, read_also(self.also, image, self.exemplar))
+        if self.target_guide:
+            return _Inputs(image, maps, fields, guides=self._read_guides(image))
         return _Inputs(image, maps, fields)
+
+    def _read_guides(self, image) -> dict:
+        from osmap_cli.synth.guide import load_guide
+
+        guides = {"target_guide": load_guide(self.target_guide, "--target-guide")}
+        if self.guide:
+            guide = load_guide(self.guide, "--guide")
+            h, w = image.pixels.shape[:2]
+            if guide.shape != (h, w):
+                raise OsmapError(f"{self.guide}: {guide.shape[1]}x{guide.shape[0]}, but "
+                                 f"{self.exemplar} is {w}x{h} (--guide needs the exemplar's "
+                                 "size)")
+            guides["guide"] = guide
+        return guides
 
     def check(self, inputs: _Inputs) -> None:
         from osmap_cli.memory import check_memory, texture_bytes
@@ -135,6 +161,7 @@ class SynthJob(Job):
                 exemplars = [inputs.image.pixels, *(a.pixels for a in inputs.also)]
                 return synthesize_several(exemplars, self.options, progress=progress)
             extra = {"fields": inputs.fields} if inputs.fields is not None else {}
+            extra.update(inputs.guides or {})
             return synth.synthesize(inputs.image.pixels, self.options, progress=progress,
                                     **extra)
 
@@ -150,6 +177,12 @@ class SynthJob(Job):
         args = synth_args(options, self.preset, self.preset_values, depth,
                           self.orientation_field, self.scale_field)
         fields_meta = {}
+        if self.target_guide:
+            if self.guide:
+                args += ["--guide", os.path.basename(self.guide)]
+                fields_meta["guide"] = os.path.basename(self.guide)
+            args += ["--target-guide", os.path.basename(self.target_guide)]
+            fields_meta["target_guide"] = os.path.basename(self.target_guide)
         if self.also:
             names = [os.path.basename(a) for a in self.also]
             args += [arg for name in names for arg in ("--also", name)]

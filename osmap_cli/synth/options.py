@@ -50,6 +50,8 @@ class SynthOptions(Options):
                         "borders (coarsest level; halved per finer level; 0: off)", tunable=True)
     blend: int = option(2, 0, 8, "seam blending radius when rendering, pixels (0: hard copies)",
                         tunable=True)
+    guide_weight: float = option(1.0, 0.0, 100.0, "how strongly the output follows "
+                                 "--target-guide (guided synthesis only)", tunable=True)
     knn: int = option(4, 0, 16, "similar-position candidates per pixel (k-coherence)",
                       tunable=True)
     random_candidates: int = option(4, 0, 16, "PatchMatch random-search candidates per pixel",

@@ -15,6 +15,9 @@ from osmap_cli.texture.features import appearance_features
 from osmap_cli.texture.levels import level_count
 from osmap_cli.texture.pyramid import build_pyramid, half_size
 
+# guided synthesis sweeps the coarsest level this many times more: the guide's regions form
+# there, out of an OS-Map layout that ignored the guide (the coarsest level is the cheapest)
+GUIDED_COARSE_FACTOR = 3
 MIN_LEVEL_SIZE = 8  # the coarsest exemplar and output levels keep at least this many pixels a side
 
 
@@ -38,17 +41,37 @@ def valid_box(shape, jac: np.ndarray, radius: int):
 
 
 def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
-               fields=None) -> SynthResult:
+               fields=None, guide=None, target_guide=None) -> SynthResult:
     """Synthesize a texture like `exemplar` (float32 (h, w, C), any channels, alpha included).
 
     `progress`, if given, is called with a fraction of the total work as stages finish.
     `fields` (osmap_cli.fields.ControlFields, optional) varies the orientation and scale per
     output pixel on top of the options' (method osmap only).
+    `target_guide` (float (H', W'), any size: resized to the output) makes the output follow it
+    where the exemplar follows `guide` (float (h, w), the exemplar's size; default: the
+    exemplar's blurred luminance, osmap_cli.synth.guide.auto_guide, and then target_guide is
+    stretched to 0..1 like it), with weight
+    options.guide_weight (method osmap only).
     """
     opts = options.validated().with_quality()
     exemplar = np.ascontiguousarray(exemplar, np.float32)
     if fields is not None and opts.method != "osmap":
         raise ValueError("control fields need method 'osmap'")
+    if guide is not None and target_guide is None:
+        raise ValueError("a guide needs a target_guide")
+    if target_guide is not None:
+        if opts.method != "osmap":
+            raise ValueError("guided synthesis needs method 'osmap'")
+        if guide is None:
+            # luminance against luminance: both stretched to 0..1
+            from osmap_cli.synth.guide import auto_guide, stretch
+            guide = auto_guide(exemplar)
+            target_guide = stretch(target_guide)
+        guide = np.asarray(guide, np.float32)
+        if guide.shape != exemplar.shape[:2]:
+            raise ValueError(f"guide is {guide.shape[1]}x{guide.shape[0]}, the exemplar "
+                             f"{exemplar.shape[1]}x{exemplar.shape[0]}: they must match")
+        opts = opts.replace(coarse_sweeps=opts.coarse_sweeps * GUIDED_COARSE_FACTOR)
     if opts.method == "paper":
         from osmap_cli.synth.paper import synthesize_paper
         pos = synthesize_paper(exemplar.shape[:2], opts, progress=progress)
@@ -80,6 +103,11 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
         if progress is not None:
             progress(units / total)
 
+    guides = [None] * levels
+    if target_guide is not None:
+        from osmap_cli.synth.guide import guide_levels
+        guides = list(zip(guide_levels(guide, exemplar.shape[:2], levels),
+                          guide_levels(target_guide, out_shape, levels)))
     pos = None
     for level in range(levels - 1, -1, -1):
         image = pyramid[level]
@@ -99,6 +127,6 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
             sweeps = opts.sweeps
         pos = refine(pos, feat, jac_field, lo, hi, sweeps, opts, wrap=wrap, seed=opts.seed,
                      salt=level, level_scale=2 ** level,
-                     coarsest_scale=2 ** (levels - 1), progress=advance)
+                     coarsest_scale=2 ** (levels - 1), progress=advance, guides=guides[level])
     pixels = render(exemplar, pos, jac_field, *render_settings(opts))
     return SynthResult(pixels, pos, None if fields is None else jac_field)

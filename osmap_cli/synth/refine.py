@@ -20,15 +20,26 @@ ALIGN_RADIUS = 1
 # as 4096 on the development exemplars (geometric-mean coh_mean 1.383 against 1.381) in 2/3 of
 # the time.
 MAX_KNN_REFERENCES = 2048
+# guide cost of a whole mismatch (guide difference 1) at guide_weight 1, in window feature
+# variances: 0.75 times a random window's expected SSD (2 variances). On the two-material test
+# (tests/test_guide.py, seeds 1-3) weight 1 keeps 97-100 % of each half in its material with
+# texmetrics coherence 1.2-1.8x unguided; twice this unit gave 100 % but 1.4-1.8x; 0.6 of it
+# let the larger copies spill over 8-28 % of the other half
+GUIDE_UNIT = 1.5
+# unguided: the kernel's guide arrays (not read when the guide weight is 0)
+_NO_GUIDE = np.zeros((1, 1), np.float32)
 
 
 def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, sweeps: int,
            opts: SynthOptions, *, wrap: bool, seed: int, salt: int, level_scale: int = 1,
-           coarsest_scale: int = 1, progress=None, constraint=None) -> np.ndarray:
+           coarsest_scale: int = 1, progress=None, constraint=None, guides=None) -> np.ndarray:
     """`sweeps` red-black coherence sweeps over pos (H, W, 2); returns the new field.
 
     `constraint` (osmap_cli.synth.constraints.LevelConstraint, optional) pins some pixels to
-    known positions and forbids some exemplar positions (inpainting, tileable photos)."""
+    known positions and forbids some exemplar positions (inpainting, tileable photos).
+    `guides` (optional): this level's (exemplar guide float32 (h, w), output guide float32
+    (H, W)); each candidate then costs opts.guide_weight * (guide difference)^2 more, in units of
+    a whole window's feature variance (osmap_cli.synth.guide)."""
     # C order whatever made pos (upsample's arithmetic keeps a strided layout): the kernels then
     # compile, load and run for one array layout only
     pos = np.ascontiguousarray(pos, np.float32)
@@ -39,6 +50,11 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
     variance = feature_variance([feat])
     window = (2 * opts.patch_radius + 1) ** 2
     seam = float(opts.seam) * variance * window / 8.0
+    gex = gout = _NO_GUIDE
+    guide = 0.0
+    if guides is not None and opts.guide_weight > 0:
+        gex, gout = (np.ascontiguousarray(g, np.float32) for g in guides)
+        guide = GUIDE_UNIT * float(opts.guide_weight) * variance * window
     # max_copy is a side in finest-level pixels; this level's pixels are level_scale times larger
     max_area = (opts.max_copy / level_scale) ** 2 if opts.max_copy > 0 else np.inf
     area = np.zeros(pos.shape[:2], np.float32)
@@ -53,12 +69,12 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
                 lo=np.asarray(lo, np.float64), hi=np.asarray(hi, np.float64),
                 n_random=opts.random_candidates, seed=np.uint64(seed),
                 salt=np.uint64(salt * 1000 + sweep * 2 + parity), parity=parity,
-                seam=seam, max_area=float(max_area))
+                seam=seam, max_area=float(max_area), guide=guide)
             if math.isfinite(max_area):
                 area = copy_region_areas(pos if constraint is None else constraint.unlinked(pos),
                                          jac_field, wrap)
             out = pos.copy()
-            refine_pass(pos, out, feat, jac_field, knn, occ, area, params)
+            refine_pass(pos, out, feat, jac_field, knn, occ, area, gex, gout, params)
             pos = out if constraint is None else constraint.pin(out)
         if opts.align > 0 and sweep < sweeps - 1:
             # the last sweep settles the borders of the copies' final placement

@@ -1,0 +1,88 @@
+"""Guided synthesis: the output follows a target guide where the exemplar follows its own guide.
+
+A guide is a float32 (h, w) map, one value per pixel (a painted mask, a gradient, a height map).
+The exemplar's guide (``--guide``) has the exemplar's size; without one the exemplar's own
+luminance, blurred and stretched to 0..1, is its guide, and the target guide is stretched to
+0..1 as well (a photo of any contrast then spans the exemplar's range). The target guide
+(``--target-guide``) is resized to the output size, whatever its size. Both are reduced like
+the exemplar pyramid (osmap_cli.texture.pyramid), and the refinement adds, per candidate
+position, ``guide_weight * (G_ex[candidate] - G_target[pixel])^2`` in units of a whole
+window's feature variance (osmap_cli.synth.refine).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from osmap_cli.errors import OsmapError
+from osmap_cli.texture.pyramid import build_pyramid, resize
+
+__all__ = ["auto_guide", "guide_levels", "load_guide", "luminance", "stretch"]
+
+# blur of the automatic guide (exemplar luminance), pixels: the regions, not the grain
+AUTO_SIGMA = 2.0
+
+
+def luminance(pixels: np.ndarray) -> np.ndarray:
+    """float32 (h, w): Rec. 709 luminance of RGB(A) pixels; a gray (+ alpha) image's gray."""
+    pixels = np.asarray(pixels, np.float32)
+    if pixels.ndim == 2:
+        return pixels
+    if pixels.shape[2] >= 3:
+        rgb = pixels[..., :3].astype(np.float64)
+        return (rgb @ np.array([0.2126, 0.7152, 0.0722])).astype(np.float32)
+    return pixels[..., 0].copy()
+
+
+def _blur(image: np.ndarray, sigma: float) -> np.ndarray:
+    """Separable Gaussian blur (edges mirrored)."""
+    r = max(1, int(3 * sigma + 0.5))
+    t = np.arange(-r, r + 1, dtype=np.float64)
+    k = np.exp(-0.5 * (t / sigma) ** 2)
+    k /= k.sum()
+    out = np.asarray(image, np.float64)
+    for axis in (0, 1):
+        pad = [(0, 0), (0, 0)]
+        pad[axis] = (r, r)
+        padded = np.pad(out, pad, mode="symmetric" if out.shape[axis] > r else "edge")
+        out = sum(k[i] * np.take(padded, range(i, i + out.shape[axis]), axis=axis)
+                  for i in range(2 * r + 1))
+    return out
+
+
+def stretch(guide: np.ndarray) -> np.ndarray:
+    """float32 guide stretched to 0..1 (a flat guide: all 0)."""
+    guide = np.asarray(guide, np.float64)
+    lo, hi = float(guide.min()), float(guide.max())
+    if hi - lo < 1e-6:
+        return np.zeros(guide.shape, np.float32)
+    return ((guide - lo) / (hi - lo)).astype(np.float32)
+
+
+def auto_guide(exemplar: np.ndarray) -> np.ndarray:
+    """The exemplar's own guide: its luminance, blurred (AUTO_SIGMA), stretched to 0..1."""
+    return stretch(_blur(luminance(exemplar), AUTO_SIGMA))
+
+
+def guide_levels(guide: np.ndarray, shape, levels: int) -> list[np.ndarray]:
+    """[finest, ..., coarsest] float32 (h, w) guides: `guide` resized to `shape`, then halved
+    like the exemplar pyramid."""
+    image = np.asarray(guide, np.float32)[..., None]
+    if image.shape[:2] != tuple(shape):
+        image = resize(image, int(shape[0]), int(shape[1]))
+    return [np.ascontiguousarray(level[..., 0]) for level in build_pyramid(image, levels)]
+
+
+def load_guide(path: str, flag: str) -> np.ndarray:
+    """A guide file as float32 (h, w): gray (+ alpha) as stored, RGB(A) as its luminance
+    (alpha ignored). OsmapError naming the file for anything else."""
+    from osmap_cli.imageio import read_image
+
+    pixels = read_image(path).pixels
+    channels = pixels.shape[2]
+    if channels not in (1, 2, 3, 4):
+        raise OsmapError(f"{path}: {channels} channels; {flag} needs a gray or RGB(A) image")
+    guide = luminance(pixels)
+    if not np.isfinite(guide).all():
+        raise OsmapError(f"{path}: {flag} holds NaN or infinite values")
+    return guide

@@ -1,0 +1,178 @@
+"""Guided synthesis (--guide, --target-guide, --guide-weight; docs/guide.md): the output follows
+the target guide where the exemplar follows its guide, coherently, and every bad input is one
+clear line."""
+
+from __future__ import annotations
+
+import json
+import os
+import shlex
+from pathlib import Path
+
+import numpy as np
+import pytest
+from texture_stats import coherence
+
+from osmap_cli.imageio import read_image, write_image
+from osmap_cli.synth.guide import auto_guide, guide_levels
+from osmap_cli.synth.options import SynthOptions
+from osmap_cli.synth.pipeline import synthesize
+
+SIZE = 96  # output side
+MARGIN = 4  # output columns kept off the guide's boundary when measuring coherence
+
+
+@pytest.fixture(scope="module")
+def materials(samples):
+    """(exemplar 128x64: gravel | brick, its guide 0 | 1, gravel, brick)."""
+    a = read_image(samples / "gravel.png").pixels[:64, :64]
+    b = read_image(samples / "brick.png").pixels[:64, :64]
+    exemplar = np.concatenate([a, b], axis=1)
+    guide = np.zeros((64, 128), np.float32)
+    guide[:, 64:] = 1.0
+    return exemplar, guide, a, b
+
+
+def _halves(shape=(SIZE, SIZE)):
+    target = np.zeros(shape, np.float32)
+    target[:, shape[1] // 2:] = 1.0
+    return target
+
+
+def test_each_output_half_comes_from_its_material(materials):
+    exemplar, guide, a, b = materials
+    result = synthesize(exemplar, SynthOptions(width=SIZE, height=SIZE, seed=1), guide=guide,
+                        target_guide=_halves())
+    from_b = result.positions[..., 1] >= 63.5
+    left, right = 1 - from_b[:, :SIZE // 2].mean(), from_b[:, SIZE // 2:].mean()
+    assert left >= 0.9 and right >= 0.9, (left, right)
+    # each half's patches against its material, next to an unguided synthesis of that material
+    ratios = []
+    for material, half in ((a, result.pixels[:, :SIZE // 2 - MARGIN]),
+                           (b, result.pixels[:, SIZE // 2 + MARGIN:])):
+        alone = synthesize(material, SynthOptions(width=SIZE // 2, height=SIZE, seed=1)).pixels
+        ratios.append(coherence(material, half) / coherence(material, alone[:, :half.shape[1]]))
+    assert np.mean(ratios) < 1.3, ratios
+
+
+def test_the_target_guide_is_resized_to_the_output(materials):
+    exemplar, guide, _, _ = materials
+    small = _halves((10, 30))  # another size and aspect: stretched to the output
+    result = synthesize(exemplar, SynthOptions(width=48, height=32, seed=2), guide=guide,
+                        target_guide=small)
+    from_b = result.positions[..., 1] >= 63.5
+    assert from_b[:, :20].mean() < 0.1 and from_b[:, 28:].mean() > 0.9
+
+
+def test_guide_levels_and_auto_guide():
+    ramp = np.tile(np.linspace(0, 1, 40, dtype=np.float32), (20, 1))
+    levels = guide_levels(ramp, (20, 40), 3)
+    assert [g.shape for g in levels] == [(20, 40), (10, 20), (5, 10)]
+    assert levels[0] is not ramp and np.array_equal(levels[0], ramp)
+    auto = auto_guide(np.stack([ramp] * 3, -1))
+    assert auto.min() == 0.0 and auto.max() == 1.0 and auto.shape == (20, 40)
+    assert np.all(np.diff(auto[10]) >= -1e-6)  # a blurred ramp still rises
+
+
+def test_the_library_refuses_mismatched_guides(materials):
+    exemplar, guide, _, _ = materials
+    opts = SynthOptions(width=32, height=32)
+    with pytest.raises(ValueError, match="target_guide"):
+        synthesize(exemplar, opts, guide=guide)
+    with pytest.raises(ValueError, match="must match"):
+        synthesize(exemplar, opts, guide=guide[:, :64], target_guide=_halves())
+    with pytest.raises(ValueError, match="method 'osmap'"):
+        synthesize(exemplar, opts.replace(method="paper"), target_guide=_halves())
+
+
+@pytest.fixture
+def workdir(materials, tmp_path, monkeypatch):
+    exemplar, guide, _, _ = materials
+    monkeypatch.chdir(tmp_path)
+    write_image(tmp_path / "ex.png", exemplar, 8)
+    write_image(tmp_path / "ex_guide.png", guide[..., None], 8)
+    write_image(tmp_path / "target.png", _halves((48, 48))[..., None], 8)
+    return tmp_path
+
+
+def test_cli_guided_output_records_and_reproduces_itself(run_cli, workdir):
+    result = run_cli("synth", "ex.png", "--guide", "ex_guide.png", "--target-guide",
+                     "target.png", "-o", "out.png", "--size", "48", "--guide-weight", "2",
+                     "--uv-out", "uv.exr", "--quiet")
+    assert result.code == 0, result.err
+    uv = read_image(workdir / "uv.exr").pixels  # u = exemplar column
+    assert (uv[:, :20, 0] < 63.5).mean() > 0.9 and (uv[:, 28:, 0] >= 63.5).mean() > 0.9
+    first = (workdir / "out.png").read_bytes()
+    info = run_cli("info", "out.png", "--command")
+    assert info.code == 0, info.err
+    args = shlex.split(info.out.strip())
+    assert args[args.index("--guide") + 1] == "ex_guide.png"
+    assert args[args.index("--target-guide") + 1] == "target.png"
+    assert args[args.index("--guide-weight") + 1] == "2"
+    os.remove("out.png")
+    assert run_cli(*args[1:]).code == 0
+    assert (workdir / "out.png").read_bytes() == first
+    shown = run_cli("info", "out.png")
+    assert "target_guide" in shown.out and "guide_weight" in shown.out
+
+
+def test_cli_without_guide_uses_the_exemplar_luminance(run_cli, workdir):
+    result = run_cli("synth", "ex.png", "--target-guide", "target.png", "-o", "out.png",
+                     "--size", "32", "--quiet")
+    assert result.code == 0, result.err
+    plain = run_cli("synth", "ex.png", "-o", "plain.png", "--size", "32", "--quiet")
+    assert plain.code == 0
+    assert read_image("out.png").pixels.tobytes() != read_image("plain.png").pixels.tobytes()
+    assert "guide_weight" not in run_cli("info", "plain.png").out
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--guide", "ex_guide.png"], "--guide needs --target-guide"),
+    (["--target-guide", "target.png", "--method", "paper"], "--target-guide needs --method"),
+    (["--target-guide", "target.png", "--also", "ex.png"], "does not combine with --also"),
+])
+def test_cli_refuses_flag_combinations(run_cli, workdir, args, message):
+    result = run_cli("synth", "ex.png", "-o", "out.png", "--size", "32", *args)
+    assert result.code == 2 and message in result.err, result.err
+    assert not Path("out.png").exists()
+
+
+def test_cli_refuses_guide_with_several_exemplars(run_cli, workdir):
+    result = run_cli("synth", "ex.png", "ex_guide.png", "--out-dir", "o", "--guide",
+                     "ex_guide.png", "--target-guide", "target.png")
+    assert result.code == 2 and "--guide belongs to one exemplar" in result.err
+
+
+def test_cli_bad_guide_files_are_one_line(run_cli, workdir):
+    write_image(workdir / "five.exr", np.zeros((64, 128, 5), np.float32), 32)
+    cases = [
+        (["--target-guide", "missing.png"], "missing.png"),
+        (["--guide", "target.png", "--target-guide", "target.png"], "target.png: 48x48"),
+        (["--guide", "five.exr", "--target-guide", "target.png"], "five.exr: 5 channels"),
+        (["--target-guide", "five.exr"], "five.exr: 5 channels"),
+    ]
+    for args, message in cases:
+        result = run_cli("synth", "ex.png", "-o", "out.png", "--size", "32", *args)
+        assert result.code == 1, (args, result.err)
+        assert len(result.err_lines) == 1 and message in result.err, result.err
+        assert "Traceback" not in result.err
+    assert not Path("out.png").exists()
+
+
+def test_help_shows_the_guide_flags(run_cli):
+    text = " ".join(run_cli("synth", "--help").out.split())
+    for flag in ("--guide GUIDE", "--target-guide GUIDE", "--guide-weight", "Guided synthesis"):
+        assert flag in text
+    assert "--target-guide photo.jpg" in text
+
+
+def test_cli_batch_follows_one_target_guide(run_cli, workdir):
+    result = run_cli("synth", "ex.png", "ex_guide.png", "--out-dir", "b", "--target-guide",
+                     "target.png", "--size", "24", "--json")
+    assert result.code == 0, result.err
+    records = [json.loads(line) for line in result.out.splitlines() if line.strip()]
+    assert len(records) == 2
+    for record in records:
+        assert record["target_guide"] == "target.png" and "guide" not in record
+        assert record["options"]["guide_weight"] == 1.0
+    assert Path("b/ex.png").exists() and Path("b/ex_guide.png").exists()
