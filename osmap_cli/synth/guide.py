@@ -19,8 +19,9 @@ from osmap_cli.texture.pyramid import build_pyramid, resize
 
 __all__ = ["auto_guide", "guide_levels", "load_guide", "luminance", "stretch"]
 
-# blur of the automatic guide (exemplar luminance), pixels: the regions, not the grain
-AUTO_SIGMA = 2.0
+# blur of the automatic guide (exemplar luminance): OpenImageIO's Gaussian filter of this width
+# (pixels), a standard deviation of about 2 px: the regions, not the grain
+AUTO_WIDTH = 9.0
 
 
 def luminance(pixels: np.ndarray) -> np.ndarray:
@@ -34,20 +35,18 @@ def luminance(pixels: np.ndarray) -> np.ndarray:
     return pixels[..., 0].copy()
 
 
-def _blur(image: np.ndarray, sigma: float) -> np.ndarray:
-    """Separable Gaussian blur (edges mirrored)."""
-    r = max(1, int(3 * sigma + 0.5))
-    t = np.arange(-r, r + 1, dtype=np.float64)
-    k = np.exp(-0.5 * (t / sigma) ** 2)
-    k /= k.sum()
-    out = np.asarray(image, np.float64)
-    for axis in (0, 1):
-        pad = [(0, 0), (0, 0)]
-        pad[axis] = (r, r)
-        padded = np.pad(out, pad, mode="symmetric" if out.shape[axis] > r else "edge")
-        out = sum(k[i] * np.take(padded, range(i, i + out.shape[axis]), axis=axis)
-                  for i in range(2 * r + 1))
-    return out
+def _blur(image: np.ndarray) -> np.ndarray:
+    """OpenImageIO's Gaussian (filter width AUTO_WIDTH), edges mirrored."""
+    import OpenImageIO as oiio
+
+    pad = int(AUTO_WIDTH) // 2 + 1
+    padded = np.pad(np.asarray(image, np.float32), pad,
+                    mode="symmetric" if min(image.shape) > pad else "edge")
+    kernel = oiio.ImageBufAlgo.make_kernel("gaussian", AUTO_WIDTH, AUTO_WIDTH)
+    blurred = oiio.ImageBufAlgo.convolve(oiio.ImageBuf(np.ascontiguousarray(padded[..., None])),
+                                         kernel)
+    out = blurred.get_pixels(oiio.FLOAT).reshape(padded.shape)
+    return out[pad:-pad, pad:-pad]
 
 
 def stretch(guide: np.ndarray) -> np.ndarray:
@@ -60,8 +59,8 @@ def stretch(guide: np.ndarray) -> np.ndarray:
 
 
 def auto_guide(exemplar: np.ndarray) -> np.ndarray:
-    """The exemplar's own guide: its luminance, blurred (AUTO_SIGMA), stretched to 0..1."""
-    return stretch(_blur(luminance(exemplar), AUTO_SIGMA))
+    """The exemplar's own guide: its luminance, blurred (AUTO_WIDTH), stretched to 0..1."""
+    return stretch(_blur(luminance(exemplar)))
 
 
 def guide_levels(guide: np.ndarray, shape, levels: int) -> list[np.ndarray]:
