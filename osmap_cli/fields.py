@@ -107,7 +107,9 @@ def _colour_channels(image) -> list[int]:
             if k != image.alpha_channel and n != "A"] or [0]
 
 
-def _read(path: str, what: str):
+def read_map(path: str, what: str):
+    """The image of a per-pixel map (a field, a guide); OsmapError naming the file for
+    NaN or infinite values."""
     from osmap_cli.imageio import read_image
 
     image = read_image(path)
@@ -118,7 +120,7 @@ def _read(path: str, what: str):
 
 def orientation_from_image(path: str) -> tuple[np.ndarray, np.ndarray]:
     """(cos, sin) float32 (h, w) of the orientation field stored in `path`."""
-    image = _read(path, "orientation field")
+    image = read_map(path, "orientation field")
     floating = image.bit_depth == 32
     px = image.pixels
     if _is_gray(image):
@@ -137,7 +139,7 @@ def orientation_from_image(path: str) -> tuple[np.ndarray, np.ndarray]:
 
 def scale_from_image(path: str) -> np.ndarray:
     """log2 of the scale factor, float32 (h, w), of the scale field stored in `path`."""
-    image = _read(path, "scale field")
+    image = read_map(path, "scale field")
     value = image.pixels[..., _colour_channels(image)].astype(np.float64).mean(axis=2)
     if image.bit_depth == 32:
         if np.any(value <= 0):

@@ -86,10 +86,11 @@ def fill_options(function):
     return function
 
 
-def plan_fill(mode: str, images, output, out_dir, name_template, jobs, fail_fast, json_lines,
+def plan_fill(mode: str, *, images, output, out_dir, name_template, jobs, fail_fast, json_lines,
               overwrite, scheduler, scheduler_file, threads, seed, preset, quality, bit_depth,
-              with_maps, uv_out, quiet, tuning, *, mask=None, border=0) -> int:
-    """Check every option, plan every output, run one FillJob per image; the exit code."""
+              with_maps, uv_out, quiet, mask=None, border=0, **tuning) -> int:
+    """Check every option, plan every output, run one FillJob per image; the exit code. The
+    keywords are the click parameters of fill_options (the tuning flags land in `tuning`)."""
     from osmap_cli.materials import expand_path
     from osmap_cli.presets import is_preset_path
     from osmap_cli.synth.fill_job import FillJob

@@ -40,9 +40,5 @@ Examples:
               help="The region to fill: an image of IMAGE's size (white = fill), or 'alpha' "
               "(IMAGE's transparent pixels).")
 @fill_options
-def inpaint_command(mask: str, images, output, out_dir, name_template, jobs, fail_fast,
-                    json_lines, overwrite, scheduler, scheduler_file, threads, seed, preset,
-                    quality, bit_depth, with_maps, uv_out, quiet, **tuning) -> int:
-    return plan_fill("inpaint", images, output, out_dir, name_template, jobs, fail_fast,
-                     json_lines, overwrite, scheduler, scheduler_file, threads, seed, preset,
-                     quality, bit_depth, with_maps, uv_out, quiet, tuning, mask=mask)
+def inpaint_command(mask: str, **params) -> int:
+    return plan_fill("inpaint", mask=mask, **params)

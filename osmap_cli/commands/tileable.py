@@ -42,9 +42,5 @@ _BORDER = option_spec(FillOptions, "border")
               help="Width of the re-synthesized bands, pixels (0: an eighth of the shorter "
               "side, at least 8).")
 @fill_options
-def tileable_command(border: int, images, output, out_dir, name_template, jobs, fail_fast,
-                     json_lines, overwrite, scheduler, scheduler_file, threads, seed, preset,
-                     quality, bit_depth, with_maps, uv_out, quiet, **tuning) -> int:
-    return plan_fill("tileable", images, output, out_dir, name_template, jobs, fail_fast,
-                     json_lines, overwrite, scheduler, scheduler_file, threads, seed, preset,
-                     quality, bit_depth, with_maps, uv_out, quiet, tuning, border=border)
+def tileable_command(border: int, **params) -> int:
+    return plan_fill("tileable", border=border, **params)

@@ -26,7 +26,7 @@ from osmap_cli.synth.refine import refine, upsample
 from osmap_cli.synth.render import render, render_settings
 from osmap_cli.texture.features import appearance_features
 from osmap_cli.texture.levels import level_count
-from osmap_cli.texture.pyramid import build_pyramid, half_size
+from osmap_cli.texture.pyramid import build_pyramid, level_shapes
 
 __all__ = ["Atlas", "SeveralResult", "pack", "snap", "synthesize_several"]
 
@@ -116,9 +116,7 @@ def synthesize_several(exemplars, options: SynthOptions, progress=None) -> Sever
     atlas = pack(exemplars, levels, max(reach, opts.patch_radius))
     pyramid = build_pyramid(atlas.pixels, levels)
     outside = mask_pyramid(~atlas.inside(), levels)
-    shapes = [out_shape]
-    for _ in range(levels - 1):
-        shapes.append(half_size(shapes[-1]))
+    shapes = level_shapes(out_shape, levels)
     wrap = opts.tileable
     work = [opts.coarse_sweeps + 1] + [opts.sweeps] * (levels - 1)
     total = float(sum(work)) or 1.0

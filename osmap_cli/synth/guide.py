@@ -75,13 +75,10 @@ def guide_levels(guide: np.ndarray, shape, levels: int) -> list[np.ndarray]:
 def load_guide(path: str, flag: str) -> np.ndarray:
     """A guide file as float32 (h, w): gray (+ alpha) as stored, RGB(A) as its luminance
     (alpha ignored). OsmapError naming the file for anything else."""
-    from osmap_cli.imageio import read_image
+    from osmap_cli.fields import read_map
 
-    pixels = read_image(path).pixels
+    pixels = read_map(path, flag).pixels
     channels = pixels.shape[2]
     if channels not in (1, 2, 3, 4):
         raise OsmapError(f"{path}: {channels} channels; {flag} needs a gray or RGB(A) image")
-    guide = luminance(pixels)
-    if not np.isfinite(guide).all():
-        raise OsmapError(f"{path}: {flag} holds NaN or infinite values")
-    return guide
+    return luminance(pixels)

@@ -13,7 +13,7 @@ from osmap_cli.synth.refine import refine, upsample
 from osmap_cli.synth.render import render, render_settings
 from osmap_cli.texture.features import appearance_features
 from osmap_cli.texture.levels import level_count
-from osmap_cli.texture.pyramid import build_pyramid, half_size
+from osmap_cli.texture.pyramid import build_pyramid, level_shapes
 
 # guided synthesis sweeps the coarsest level this many times more: the guide's regions form
 # there, out of an OS-Map layout that ignored the guide (the coarsest level is the cheapest)
@@ -80,9 +80,7 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
     out_shape = (opts.height, opts.width)
     levels = level_count([exemplar.shape[:2]], out_shape, opts.levels, min_size=MIN_LEVEL_SIZE)
     pyramid = build_pyramid(exemplar, levels)
-    shapes = [out_shape]
-    for _ in range(levels - 1):
-        shapes.append(half_size(shapes[-1]))
+    shapes = level_shapes(out_shape, levels)
     jac = opts.jacobian()
     if fields is not None:
         # the OS-Map lays out the coarsest level with one Jacobian summarising the fields;

@@ -30,6 +30,14 @@ def half_size(shape: tuple[int, int]) -> tuple[int, int]:
     return max(1, (shape[0] + 1) // 2), max(1, (shape[1] + 1) // 2)
 
 
+def level_shapes(shape: tuple[int, int], levels: int) -> list[tuple[int, int]]:
+    """[finest, ..., coarsest]: `shape` and the sizes of the `levels - 1` coarser levels."""
+    shapes = [tuple(shape)]
+    for _ in range(levels - 1):
+        shapes.append(half_size(shapes[-1]))
+    return shapes
+
+
 def build_pyramid(image: np.ndarray, levels: int) -> list[np.ndarray]:
     """[finest, ..., coarsest]: `levels` images, each half the size of the previous one."""
     pyramid = [np.asarray(image, np.float32)]
