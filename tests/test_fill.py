@@ -279,3 +279,104 @@ def test_fill_help_lists_the_flags_that_apply(run_cli, repo_root):
         assert own in text and f"osmap {command} " in text and own in usage
         for name in tunables(SynthOptions):
             assert (flag(name) in text) == (name not in OSMAP_ONLY), (command, name)
+
+
+# --------------------------------------------------------------------------------------------
+# inpaint --exemplar: the hole filled from other images
+
+
+def _tinted(pixels, tint):
+    """pixels (any channels) as RGB, multiplied by tint: colours no other test image has."""
+    rgb = np.repeat(pixels[..., :1], 3, 2) if pixels.shape[2] < 3 else pixels[..., :3]
+    return (rgb * np.array(tint, np.float32)).astype(np.float32)
+
+
+def test_inpaint_from_exemplars_draws_the_fill_from_them(samples):
+    """The fill's positions lie in the exemplars, its colours are theirs (a red and a blue
+    brick where the image is cells), the kept pixels are bit for bit."""
+    from osmap_cli.imageio import read_image
+    from osmap_cli.synth import SynthOptions
+    from osmap_cli.synth.fill import inpaint
+
+    image = read_image(samples / "cells.png").pixels[:80, :80]
+    brick = read_image(samples / "brick.png").pixels
+    red, blue = _tinted(brick[:64, :64], (1, 0.2, 0.1)), _tinted(brick[64:128, :72], (0.1, 0.2, 1))
+    free = _hole((80, 80), 32)
+    result = inpaint(image, free, SynthOptions(seed=1), exemplars=[red, blue])
+    assert np.array_equal(result.pixels[~free], image[~free])
+    index = result.exemplar_index
+    assert (index[~free] == -1).all() and (index[free] >= 0).all()
+    # local positions inside their exemplar, and the pixels rendered from them
+    local = np.rint(result.local_positions[free]).astype(int)
+    sizes = np.array([red.shape[:2], blue.shape[:2]])[index[free]]
+    assert (local >= 0).all() and (local < sizes).all()
+    inner = _hole((80, 80), 20)  # away from the border correction
+    ys, xs = np.nonzero(inner)
+    sources = [red, blue]
+    drawn = np.array([sources[i][r, c] for i, (r, c) in
+                      zip(index[ys, xs], np.rint(result.local_positions[ys, xs]).astype(int))])
+    assert np.abs(result.pixels[ys, xs] - drawn).mean() < 0.05
+    # the colours are the exemplars': red or blue dominates every inner pixel, which cells'
+    # colours (any hue) would not give
+    pix = result.pixels[inner]
+    assert (np.abs(pix[:, 0] - pix[:, 2]) > 0.5 * pix[:, :3].max(1) - 1e-3).mean() > 0.9
+    # without exemplars the same hole comes from the image itself
+    own = inpaint(image, free, SynthOptions(seed=1))
+    assert not np.array_equal(own.pixels[free], result.pixels[free])
+
+
+def test_inpaint_from_exemplars_refuses_other_channels(gravel):
+    from osmap_cli.synth import SynthOptions
+    from osmap_cli.synth.fill import inpaint
+
+    with pytest.raises(ValueError, match="same channels"):
+        inpaint(gravel, _hole(gravel.shape[:2], 20), SynthOptions(),
+                exemplars=[np.zeros((32, 32, 2), np.float32)])
+
+
+def test_inpaint_exemplar_cli(material, samples, run_cli, tmp_path):
+    """--exemplar (repeatable, {stem} expanded) with a mask file and with --mask alpha: kept
+    pixels bit for bit, the fill from the exemplar, provenance, the refusals."""
+    from osmap_cli.imageio import read_image, read_metadata
+
+    folder = material["folder"]
+    brick = read_image(samples / "brick.png").pixels
+    red = _write(folder / "img_red.png", _tinted(brick[:64, :64], (1, 0.2, 0.1)))
+    gray = _write(folder / "gray.png", brick[:64, :64])
+    free = material["free"]
+    image = read_image(material["image"]).pixels
+    out = tmp_path / "out.png"
+    result = run_cli("inpaint", material["image"], "--mask", material["mask"], "-o", out,
+                     "--exemplar", str(folder / "{stem}_red.png"), "--seed", "2")
+    assert result.code == 0, result.err
+    written = read_image(out).pixels
+    assert np.array_equal(written[~free], image[~free])
+    inner = _hole((64, 64), 12)
+    assert (written[inner][:, 0] > 2 * written[inner][:, 2]).mean() > 0.9  # red, like EX
+    meta = read_metadata(out)
+    assert meta["exemplars"] == "img_red.png"
+    info = run_cli("info", out, "--command")
+    assert "--exemplar img_red.png" in info.out and "--mask img_mask.png" in info.out
+    # --mask alpha: an RGBA image, an RGB exemplar (taken as opaque)
+    out_a = tmp_path / "out_a.png"
+    result = run_cli("inpaint", material["rgba"], "--mask", "alpha", "--exemplar", red,
+                     "--exemplar", red, "-o", out_a)
+    assert result.code == 0, result.err
+    rgba = read_image(out_a).pixels
+    source = read_image(material["rgba"]).pixels
+    assert np.array_equal(rgba[~free], source[~free]) and (rgba[free][:, 3] == 1.0).all()
+    assert (rgba[inner][:, 0] > 2 * rgba[inner][:, 2]).mean() > 0.9
+    # refusals: one line, nothing written
+    bad = tmp_path / "bad.png"
+    for args, code, phrase in (
+            (("--exemplar", gray), 1, "gray.png: 1 channels"),
+            (("--exemplar", folder / "none.png"), 1, "none.png"),
+            (("--exemplar", red, "--with", f"r={material['rough']}"), 2, "--with"),
+            (("--exemplar", red, "--uv-out", tmp_path / "uv.exr"), 2, "--uv-out")):
+        result = run_cli("inpaint", material["image"], "--mask", material["mask"], "-o", bad,
+                         *args)
+        assert result.code == code and phrase in result.err, result.err
+        assert len(result.err_lines) == 1 and not bad.exists()
+        assert "Traceback" not in result.err
+    text = " ".join(run_cli("inpaint", "--help").out.split())
+    assert "--exemplar EX" in text and "osmap inpaint wall.png --mask hole.png --exemplar" in text

@@ -88,7 +88,7 @@ def fill_options(function):
 
 def plan_fill(mode: str, *, images, output, out_dir, name_template, jobs, fail_fast, json_lines,
               overwrite, scheduler, scheduler_file, threads, seed, preset, quality, bit_depth,
-              with_maps, uv_out, quiet, mask=None, border=0, **tuning) -> int:
+              with_maps, uv_out, quiet, mask=None, border=0, exemplars=(), **tuning) -> int:
     """Check every option, plan every output, run one FillJob per image; the exit code. The
     keywords are the click parameters of fill_options (the tuning flags land in `tuning`)."""
     from osmap_cli.materials import expand_path
@@ -99,6 +99,12 @@ def plan_fill(mode: str, *, images, output, out_dir, name_template, jobs, fail_f
     loaded = load_preset(preset, "synth")
     options = resolve_options(SynthOptions, loaded.values,
                               {"seed": seed, "quality": quality}, tuning)
+    for given, flag, why in (
+            (with_maps, "--with", "the exemplars have no maps aligned with them"),
+            (uv_out, "--uv-out", "a position in one of several images has no single image "
+             "to refer to")):
+        if exemplars and given:
+            raise click.UsageError(f"--exemplar does not combine with {flag} ({why})")
     inputs = expand_inputs(images)
     withs = parse_withs(with_maps)
     if uv_out is not None and os.path.splitext(uv_out)[1].lower() != ".exr":
@@ -115,12 +121,14 @@ def plan_fill(mode: str, *, images, output, out_dir, name_template, jobs, fail_f
         main, maps, uv = image_outputs(image, fields, output, out_dir, name_template, uv_out,
                                        withs, bit_depth, owners)
         image_mask = expand_path(mask, image) if mask not in (None, "alpha") else mask
-        plans.append((image, main, maps, uv, image_mask))
+        plans.append((image, main, maps, uv, image_mask,
+                      tuple(expand_path(e, image) for e in exemplars)))
 
-    input_paths = real_paths([*inputs, *(s.path for _, _, ms, _, _ in plans for s, _ in ms),
-                              *(m for *_, m in plans if m not in (None, "alpha"))])
+    input_paths = real_paths([*inputs, *(s.path for _, _, ms, _, _, _ in plans for s, _ in ms),
+                              *(p[4] for p in plans if p[4] not in (None, "alpha")),
+                              *(e for p in plans for e in p[5])])
     job_list = []
-    for index, (image, main, maps, uv, image_mask) in enumerate(plans, 1):
+    for index, (image, main, maps, uv, image_mask, image_exemplars) in enumerate(plans, 1):
         refused = refusal([main, *(o for _, o in maps), *([uv] if uv else [])], input_paths)
         job_list.append(FillJob(
             index=index, exemplar=image, output=main, options=options, preset=preset_name,
@@ -128,5 +136,5 @@ def plan_fill(mode: str, *, images, output, out_dir, name_template, jobs, fail_f
             replace=output is not None or overwrite, refused=refused,
             progress=show_progress(quiet, jobs), quiet=quiet,
             label=f"osmap {mode}" if len(plans) == 1 else os.path.basename(image),
-            mode=mode, mask=image_mask, border=border))
+            mode=mode, mask=image_mask, border=border, exemplars=image_exemplars))
     return run_batch(job_list, jobs, fail_fast, json_lines, quiet, cluster)

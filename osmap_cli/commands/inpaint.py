@@ -20,7 +20,13 @@ outside the region is written back bit for bit; the region is
 synthesized coarse to fine, its matching windows including the kept
 pixels around it, so it continues the surrounding structure. The fill
 copies only pixels outside the region (never the hole's old content).
-In batches, {stem} {name} {dir} in MASK refer to each image.
+--exemplar EX (repeatable) fills the region from EX instead of from
+the rest of IMAGE (EX needs IMAGE's channels; an EX without alpha is
+taken as opaque when IMAGE has alpha); the kept pixels around the region
+still steer the fill. Not with --with or --uv-out (the exemplars have
+no aligned maps, and positions in several images have no single image
+to refer to). In batches, {stem} {name} {dir} in MASK and EX refer to
+each image.
 
 """ + FILL_COMMON_HELP
 
@@ -29,6 +35,8 @@ Examples:
   osmap inpaint photo.png --mask hole.png -o out/photo_filled.png
   osmap inpaint cutout.png --mask alpha -o out/cutout_filled.png
   osmap inpaint rock.png --mask hole.png -o out/rock.png --with normal=rock_normal.png
+  osmap inpaint wall.png --mask hole.png --exemplar bricks.png -o out/wall.png
+  osmap inpaint wall.png --mask alpha --exemplar b1.png --exemplar b2.png -o out/w.png
   osmap inpaint photo.png --mask hole.png -o out/photo.png --uv-out out/photo_uv.exr --seed 3
   osmap inpaint shots/*.png --mask '{dir}/{stem}_mask.png' --out-dir out/filled -j 2 --json
 """
@@ -39,6 +47,10 @@ Examples:
 @click.option("--mask", required=True, metavar="MASK|alpha",
               help="The region to fill: an image of IMAGE's size (white = fill), or 'alpha' "
               "(IMAGE's transparent pixels).")
+@click.option("--exemplar", "exemplars", multiple=True, type=click.Path(path_type=str),
+              metavar="EX", help="Fill the region from this image instead of from the rest of "
+              "IMAGE (same channels). Repeatable: the fill draws from all of them. Not with "
+              "--with or --uv-out.")
 @fill_options
-def inpaint_command(mask: str, **params) -> int:
-    return plan_fill("inpaint", mask=mask, **params)
+def inpaint_command(mask: str, exemplars: tuple[str, ...], **params) -> int:
+    return plan_fill("inpaint", mask=mask, exemplars=exemplars, **params)

@@ -24,6 +24,7 @@ from osmap_cli.synth.constraints import (
     mask_pyramid,
     push_pull,
 )
+from osmap_cli.synth.atlas import SeveralResult
 from osmap_cli.synth.options import SynthOptions
 from osmap_cli.synth.pipeline import MIN_LEVEL_SIZE, SynthResult, valid_box
 from osmap_cli.synth.refine import refine, upsample
@@ -49,11 +50,17 @@ def border_bands(shape, border: int) -> np.ndarray:
 
 
 def inpaint(image: np.ndarray, mask: np.ndarray, options: SynthOptions | None = None,
-            progress=None) -> SynthResult:
+            progress=None, exemplars=()) -> SynthResult:
     """image (H, W, C) with the pixels where mask (bool (H, W)) is True synthesized from the
-    others, which are kept bit for bit (`osmap inpaint`)."""
+    others, which are kept bit for bit (`osmap inpaint`).
+
+    exemplars (float32 (h_i, w_i, C) each, optional): the hole is synthesized from them instead
+    of from the rest of the image (`osmap inpaint --exemplar`); the kept pixels still take part
+    in the matching windows, so the fill continues them. The result is then a
+    :class:`osmap_cli.synth.atlas.SeveralResult`: positions in the atlas of [image, *exemplars],
+    exemplar_index (-1: the image's own pixel, i: exemplars[i]) and local_positions."""
     return fill(image, mask, (options or SynthOptions()).replace(tileable=False),
-                source_free=False, progress=progress)
+                source_free=False, progress=progress, exemplars=exemplars)
 
 
 def make_tileable(image: np.ndarray, border: int = 0, options: SynthOptions | None = None,
@@ -92,23 +99,43 @@ def _random_allowed(rng, count: int, allowed: np.ndarray, lo, hi) -> np.ndarray:
 
 
 def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_free: bool,
-         progress=None) -> SynthResult:
+         progress=None, exemplars=()) -> SynthResult:
     """image float32 (H, W, C) with the `free` pixels (bool (H, W)) synthesized from the others.
 
     source_free: may the free pixels' own content be copied (True for tileable bands, whose
     content is real; False for a hole, whose content is unknown). options.tileable makes the
     output wrap around. The size is the image's; the kept pixels come back bit for bit.
+    exemplars (a hole only): the free pixels are synthesized from these images (same channels
+    as image) instead of from the image's kept pixels (see inpaint).
     """
     opts = options.validated().with_quality()
     image = np.ascontiguousarray(image, np.float32)
     free = np.asarray(free, bool)
     _check(image, free, opts)
+    exemplars = [np.ascontiguousarray(ex, np.float32) for ex in exemplars]
+    if exemplars:
+        _check_exemplars(image, exemplars, source_free)
     shape = image.shape[:2]
     wrap = opts.tileable
     source = image if source_free else push_pull(image, ~free)
-    levels = level_count([shape], shape, opts.levels, min_size=MIN_LEVEL_SIZE)
-    pyramid = build_pyramid(source, levels)
+    levels = level_count([shape, *(ex.shape[:2] for ex in exemplars)], shape, opts.levels,
+                         min_size=MIN_LEVEL_SIZE)
     holes = mask_pyramid(free, levels)
+    atlas = None
+    if exemplars:
+        # the image (its hole pre-filled) and the exemplars side by side: the kept pixels read
+        # their own positions in it, the hole may take positions inside the exemplars only
+        from osmap_cli.synth.atlas import pack
+
+        atlas = pack([source, *exemplars], levels, max(opts.patch_radius, opts.blend) + 1)
+        pyramid = build_pyramid(atlas.pixels, levels)
+        sources = np.zeros(atlas.pixels.shape[:2], bool)
+        for (y, x), (h, w) in zip(atlas.origins[1:], atlas.shapes[1:]):
+            sources[y:y + h, x:x + w] = True
+        off_limits = mask_pyramid(~sources, levels)
+    else:
+        pyramid = build_pyramid(source, levels)
+        off_limits = holes
     jac = np.eye(2)
     rng = np.random.default_rng(opts.seed)
     rounds = 1 if source_free else 2
@@ -122,19 +149,22 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
     for level in range(levels - 1, -1, -1):
         hole = holes[level]
         level_shape = hole.shape
+        source_shape = pyramid[level].shape[:2]
         jac_field = np.broadcast_to(jac.astype(np.float32), (*level_shape, 2, 2)).copy()
-        lo, hi = valid_box(level_shape, jac, opts.patch_radius)
+        lo, hi = valid_box(source_shape, jac, opts.patch_radius)
         if source_free and level > 0:
             # the bands may continue the kept centre up to the image's edge (windows there read
             # edge-replicated pixels) at the coarse levels, where the bands are a pixel or two
             # wide: else they could only copy from elsewhere and cut a seam along the centre
             lo, hi = np.zeros(2), np.array(level_shape, np.float64) - 1
-        forbidden = np.zeros(level_shape, bool)
+        forbidden = np.zeros(source_shape, bool)
         if not source_free:
             reach = opts.patch_radius + 1 if level else max(opts.patch_radius + 1, opts.blend)
-            forbidden = dilate(hole, reach)
+            forbidden = dilate(off_limits[level], reach)
             if forbidden[int(lo[0]):int(hi[0]) + 1, int(lo[1]):int(hi[1]) + 1].all():
-                forbidden = hole.copy()  # a mask this large at a coarse level: the hole only
+                # a mask this large (exemplars this small) at a coarse level: the hole (the
+                # positions outside the exemplars) only
+                forbidden = off_limits[level].copy()
         known = identity_positions(level_shape)
         if pos is None:
             pos = known.copy()
@@ -155,7 +185,7 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
             # a hole's second round matches against the first round's fill instead of the
             # smooth pre-fill, which blurs the features of the kept pixels around the hole
             if round_:
-                level_image = np.where(hole[..., None], render(pyramid[level], pos), level_image)
+                level_image = _paste(level_image, hole, render(pyramid[level], pos))
             feat = appearance_features([level_image], opts.feature_dims)[0]
             pos = refine(pos, feat, jac_field, lo, hi, sweeps, opts, wrap=wrap, seed=opts.seed,
                          salt=level + 100 * round_, level_scale=2 ** level,
@@ -163,10 +193,44 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
                          constraint=constraint)
     if not source_free and forbidden[np.rint(pos[free]).astype(int)[:, 0],
                                       np.rint(pos[free]).astype(int)[:, 1]].any():
-        raise OsmapError("the mask leaves too little of the image to fill it from")
-    pixels = render_fill(lambda px, blend: render(px, pos, jac_field, wrap, blend), image, free,
-                         source_free, opts.blend)
-    return SynthResult(pixels, pos)
+        raise OsmapError("the exemplars are too small to fill the mask from" if exemplars else
+                         "the mask leaves too little of the image to fill it from")
+    if atlas is None:
+        pixels = render_fill(lambda px, blend: render(px, pos, jac_field, wrap, blend), image,
+                             free, source_free, opts.blend)
+        return SynthResult(pixels, pos)
+
+    def draw(px, blend):
+        # the image's pixels (as render_fill passes them) in the atlas, then rendered
+        sheet = atlas.pixels.copy()
+        sheet[:shape[0], :shape[1]] = px
+        return render(sheet, pos, jac_field, wrap, blend)
+
+    pixels = render_fill(draw, image, free, source_free, opts.blend)
+    index = atlas.index(pos) - 1  # -1: the image itself
+    origins = np.array(atlas.origins, np.float32)
+    local = (pos - origins[index + 1]).astype(np.float32)
+    return SeveralResult(pixels, pos, None, index, local)
+
+
+def _check_exemplars(image: np.ndarray, exemplars, source_free: bool) -> None:
+    if source_free:
+        raise ValueError("exemplars fill a hole only (not tileable bands)")
+    for i, ex in enumerate(exemplars):
+        if ex.ndim != 3 or ex.shape[2] != image.shape[2]:
+            raise ValueError(f"exemplar {i} has shape {ex.shape}, the image {image.shape}: "
+                             "they need the same channels")
+
+
+def _paste(level_image: np.ndarray, hole: np.ndarray, drawn: np.ndarray) -> np.ndarray:
+    """level_image (the image's level, or the atlas with the image at its top-left) with the
+    hole's pixels replaced by `drawn` (the hole's shape)."""
+    h, w = hole.shape
+    if level_image.shape[:2] == (h, w):
+        return np.where(hole[..., None], drawn, level_image)
+    out = level_image.copy()
+    out[:h, :w] = np.where(hole[..., None], drawn, level_image[:h, :w])
+    return out
 
 
 def render_fill(draw, pixels: np.ndarray, free: np.ndarray, source_free: bool,

@@ -31,6 +31,7 @@ class _FillInputs:
     maps: list  # [(WithMap, output path, Image)]
     free: np.ndarray  # bool (H, W): the pixels to synthesize
     fields: object = None
+    exemplars: tuple = ()  # float32 pixels of --exemplar, with the image's channels
 
 
 def read_mask(mask: str, image) -> np.ndarray:
@@ -62,6 +63,25 @@ def read_mask(mask: str, image) -> np.ndarray:
     return free
 
 
+def read_exemplars(paths, image) -> tuple:
+    """The --exemplar images' pixels, with IMAGE's channel count: the same, or one fewer when
+    IMAGE's last channel is its alpha (the exemplar is then taken as opaque)."""
+    from osmap_cli.imageio import read_image
+
+    channels = image.pixels.shape[2]
+    out = []
+    for path in paths:
+        pixels = read_image(path).pixels
+        if pixels.shape[2] == channels - 1 and image.alpha_channel == channels - 1:
+            pixels = np.concatenate([pixels, np.ones((*pixels.shape[:2], 1), np.float32)], 2)
+        if pixels.shape[2] != channels:
+            raise OsmapError(f"{path}: {pixels.shape[2]} channels, but {image.path} has "
+                             f"{channels} (--exemplar needs the same, or the same without "
+                             "alpha)")
+        out.append(np.ascontiguousarray(pixels, np.float32))
+    return tuple(out)
+
+
 @dataclass(frozen=True)
 class FillJob(SynthJob):
     """One image and where its outputs go. mode: inpaint (mask) or tileable (border)."""
@@ -69,6 +89,7 @@ class FillJob(SynthJob):
     mode: str = "inpaint"
     mask: str | None = None  # a mask image's path, or "alpha" (inpaint)
     border: int = 0  # the requested band width, 0: automatic (tileable)
+    exemplars: tuple = ()  # --exemplar paths: the hole is filled from them (inpaint)
     label: str = "osmap inpaint"
 
     def describe(self) -> dict:
@@ -77,6 +98,8 @@ class FillJob(SynthJob):
         record["options"] = {**record["options"], "mode": self.mode,
                              **({"mask": self.mask} if self.mode == "inpaint" else
                                 {"border": self.border})}
+        if self.exemplars:
+            record["exemplars"] = list(self.exemplars)
         return record
 
     def read(self) -> _FillInputs:
@@ -96,7 +119,7 @@ class FillJob(SynthJob):
             free = border_bands(image.pixels.shape[:2], band)
         maps = [(spec, path, load_aligned(spec.path, image.pixels.shape, self.exemplar))
                 for spec, path in self.withs]
-        return _FillInputs(image, maps, free)
+        return _FillInputs(image, maps, free, exemplars=read_exemplars(self.exemplars, image))
 
     def sized(self, inputs) -> SynthJob:
         """This job with the options' size set to the image's."""
@@ -117,7 +140,8 @@ class FillJob(SynthJob):
         options = self.sized(inputs).options
         with ProgressBar(enabled=self.progress, desc=self.label) as progress:
             return fill(inputs.image.pixels, inputs.free, options,
-                        source_free=self.mode == "tileable", progress=progress)
+                        source_free=self.mode == "tileable", progress=progress,
+                        exemplars=inputs.exemplars)
 
     def stage(self, outputs, inputs, result):
         from osmap_cli.imageio import encode_image
@@ -132,6 +156,10 @@ class FillJob(SynthJob):
         if self.mode == "inpaint":
             given = os.path.basename(self.mask) if self.mask != "alpha" else "alpha"
             more, extra = ["--mask", given], {"mask": given}
+            if self.exemplars:
+                names = [os.path.basename(e) for e in self.exemplars]
+                more += [arg for name in names for arg in ("--exemplar", name)]
+                extra["exemplars"] = ",".join(names)
         else:
             from osmap_cli.synth.options import FillOptions
 
