@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from osmap_cli.errors import OsmapError
+from osmap_cli.synth.atlas import SeveralResult
 from osmap_cli.synth.constraints import (
     LevelConstraint,
     dilate,
@@ -24,7 +25,6 @@ from osmap_cli.synth.constraints import (
     mask_pyramid,
     push_pull,
 )
-from osmap_cli.synth.atlas import SeveralResult
 from osmap_cli.synth.options import SynthOptions
 from osmap_cli.synth.pipeline import MIN_LEVEL_SIZE, SynthResult, valid_box
 from osmap_cli.synth.refine import refine, upsample
