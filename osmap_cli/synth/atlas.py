@@ -21,10 +21,14 @@ import numpy as np
 from osmap_cli.synth.constraints import LevelConstraint, dilate, mask_pyramid
 from osmap_cli.synth.options import SynthOptions
 from osmap_cli.synth.organise import organise
-from osmap_cli.synth.pipeline import MIN_LEVEL_SIZE, SynthResult, valid_box
-from osmap_cli.synth.refine import refine, upsample
+from osmap_cli.synth.pipeline import (
+    MIN_LEVEL_SIZE,
+    LevelLoop,
+    SynthResult,
+    run_levels,
+    valid_box,
+)
 from osmap_cli.synth.render import render, render_settings
-from osmap_cli.texture.features import appearance_features
 from osmap_cli.texture.levels import level_count
 from osmap_cli.texture.pyramid import build_pyramid, level_shapes
 
@@ -117,42 +121,33 @@ def synthesize_several(exemplars, options: SynthOptions, progress=None) -> Sever
     pyramid = build_pyramid(atlas.pixels, levels)
     outside = mask_pyramid(~atlas.inside(), levels)
     shapes = level_shapes(out_shape, levels)
-    wrap = opts.tileable
-    work = [opts.coarse_sweeps + 1] + [opts.sweeps] * (levels - 1)
-    total = float(sum(work)) or 1.0
 
-    def advance(units):
-        if progress is not None:
-            progress(units / total)
+    def jacobian_field(shape):
+        return np.broadcast_to(jac.astype(np.float32), (*shape, 2, 2)).copy()
 
-    pos = None
-    for level in range(levels - 1, -1, -1):
-        image = pyramid[level]
-        feat = appearance_features([image], opts.feature_dims)[0]
-        jac_field = np.broadcast_to(jac.astype(np.float32), (*shapes[level], 2, 2)).copy()
-        lo, hi = valid_box(image.shape[:2], jac, opts.patch_radius)
-        # a window must stay inside its own exemplar: its centre at least `reach` pixels in
-        forbidden = dilate(outside[level], reach)
+    def bounds(level, shape, jac_field):
+        return valid_box(shape, jac, opts.patch_radius)
+
+    def constraint(level, lo, hi):
+        # a window must stay inside its own exemplar: its centre at least `reach` pixels in;
         # occupancy is relative to uniform use of the exemplars, not of the whole atlas
-        constraint = LevelConstraint(np.zeros(shapes[level], bool),
-                                     np.zeros((*shapes[level], 2), np.float32), forbidden,
-                                     float((~outside[level]).mean()))
-        if pos is None:
-            # the OS-Map's winner-search window follows one exemplar's extent, not the atlas'
-            extent = tuple(max(-(-s[k] // 2 ** level) for s in atlas.shapes) for k in (0, 1))
-            pos = organise(extent, shapes[level], jac, lo, hi, opts, wrap=wrap,
-                           seed=opts.seed, allowed=~forbidden)
-            if np.allclose(jac, np.eye(2)):
-                pos = np.rint(pos)
-            pos = snap(pos, ~forbidden)
-            advance(1)
-            sweeps = opts.coarse_sweeps
-        else:
-            pos = upsample(pos, shapes[level], jac_field, lo, hi)
-            sweeps = opts.sweeps
-        pos = refine(pos, feat, jac_field, lo, hi, sweeps, opts, wrap=wrap, seed=opts.seed,
-                     salt=level, level_scale=2 ** level, coarsest_scale=2 ** (levels - 1),
-                     progress=advance, constraint=constraint)
+        return LevelConstraint(np.zeros(shapes[level], bool),
+                               np.zeros((*shapes[level], 2), np.float32),
+                               dilate(outside[level], reach),
+                               float((~outside[level]).mean()))
+
+    def start(level, lo, hi, constraint):
+        # the OS-Map's winner-search window follows one exemplar's extent, not the atlas'
+        extent = tuple(max(-(-s[k] // 2 ** level) for s in atlas.shapes) for k in (0, 1))
+        allowed = ~constraint.forbidden
+        pos = organise(extent, shapes[level], jac, lo, hi, opts, wrap=opts.tileable,
+                       seed=opts.seed, allowed=allowed)
+        if np.allclose(jac, np.eye(2)):
+            pos = np.rint(pos)
+        return snap(pos, allowed)
+
+    pos, jac_field, _ = run_levels(LevelLoop(pyramid, shapes, jacobian_field, bounds, start,
+                                             constraint=constraint), opts, progress)
     pixels = render(atlas.pixels, pos, jac_field, *render_settings(opts))
     index = atlas.index(pos)
     origins = np.array(atlas.origins, np.float32)

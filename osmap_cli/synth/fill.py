@@ -26,10 +26,14 @@ from osmap_cli.synth.constraints import (
     push_pull,
 )
 from osmap_cli.synth.options import SynthOptions
-from osmap_cli.synth.pipeline import MIN_LEVEL_SIZE, SynthResult, valid_box
-from osmap_cli.synth.refine import refine, upsample
+from osmap_cli.synth.pipeline import (
+    MIN_LEVEL_SIZE,
+    LevelLoop,
+    SynthResult,
+    run_levels,
+    valid_box,
+)
 from osmap_cli.synth.render import render
-from osmap_cli.texture.features import appearance_features
 from osmap_cli.texture.levels import level_count
 from osmap_cli.texture.pyramid import build_pyramid
 
@@ -136,28 +140,23 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
     else:
         pyramid = build_pyramid(source, levels)
         off_limits = holes
-    jac = np.eye(2)
     rng = np.random.default_rng(opts.seed)
-    rounds = 1 if source_free else 2
-    total = float(1 + rounds * (opts.coarse_sweeps + opts.sweeps * (levels - 1))) or 1.0
 
-    def advance(units):
-        if progress is not None:
-            progress(units / total)
+    def jacobian_field(shape):
+        return np.broadcast_to(np.eye(2, dtype=np.float32), (*shape, 2, 2)).copy()
 
-    pos = None
-    for level in range(levels - 1, -1, -1):
-        hole = holes[level]
-        level_shape = hole.shape
-        source_shape = pyramid[level].shape[:2]
-        jac_field = np.broadcast_to(jac.astype(np.float32), (*level_shape, 2, 2)).copy()
-        lo, hi = valid_box(source_shape, jac, opts.patch_radius)
+    def bounds(level, source_shape, jac_field):
         if source_free and level > 0:
             # the bands may continue the kept centre up to the image's edge (windows there read
             # edge-replicated pixels) at the coarse levels, where the bands are a pixel or two
             # wide: else they could only copy from elsewhere and cut a seam along the centre
-            lo, hi = np.zeros(2), np.array(level_shape, np.float64) - 1
-        forbidden = np.zeros(source_shape, bool)
+            return np.zeros(2), np.array(holes[level].shape, np.float64) - 1
+        return valid_box(source_shape, np.eye(2), opts.patch_radius)
+
+    def constraint(level, lo, hi):
+        """The kept pixels pinned to their own positions; for a hole, the positions whose
+        window reaches it (or leaves the exemplars) forbidden."""
+        forbidden = np.zeros(pyramid[level].shape[:2], bool)
         if not source_free:
             reach = opts.patch_radius + 1 if level else max(opts.patch_radius + 1, opts.blend)
             forbidden = dilate(off_limits[level], reach)
@@ -165,32 +164,27 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
                 # a mask this large (exemplars this small) at a coarse level: the hole (the
                 # positions outside the exemplars) only
                 forbidden = off_limits[level].copy()
-        known = identity_positions(level_shape)
-        if pos is None:
-            pos = known.copy()
-            if source_free:
-                pos[..., 0] = np.clip(pos[..., 0], lo[0], hi[0])
-                pos[..., 1] = np.clip(pos[..., 1], lo[1], hi[1])
-            else:
-                pos[hole] = _random_allowed(rng, int(hole.sum()), ~forbidden, lo, hi)
-            advance(1)
-            sweeps = opts.coarse_sweeps
+        return LevelConstraint(~holes[level], identity_positions(holes[level].shape), forbidden)
+
+    def start(level, lo, hi, constraint):
+        hole = holes[level]
+        pos = constraint.known.copy()
+        if source_free:
+            pos[..., 0] = np.clip(pos[..., 0], lo[0], hi[0])
+            pos[..., 1] = np.clip(pos[..., 1], lo[1], hi[1])
         else:
-            pos = upsample(pos, level_shape, jac_field, lo, hi)
-            pos[~hole] = known[~hole]
-            sweeps = opts.sweeps
-        constraint = LevelConstraint(~hole, known, forbidden)
-        level_image = pyramid[level]
-        for round_ in range(1 if source_free else 2):
-            # a hole's second round matches against the first round's fill instead of the
-            # smooth pre-fill, which blurs the features of the kept pixels around the hole
-            if round_:
-                level_image = _paste(level_image, hole, render(pyramid[level], pos))
-            feat = appearance_features([level_image], opts.feature_dims)[0]
-            pos = refine(pos, feat, jac_field, lo, hi, sweeps, opts, wrap=wrap, seed=opts.seed,
-                         salt=level + 100 * round_, level_scale=2 ** level,
-                         coarsest_scale=2 ** (levels - 1), progress=advance,
-                         constraint=constraint)
+            pos[hole] = _random_allowed(rng, int(hole.sum()), ~constraint.forbidden, lo, hi)
+        return pos
+
+    def restyle(level, level_image, pos):
+        # a hole's second round matches against the first round's fill instead of the smooth
+        # pre-fill, which blurs the features of the kept pixels around the hole
+        return _paste(level_image, holes[level], render(pyramid[level], pos))
+
+    loop = LevelLoop(pyramid, [h.shape for h in holes], jacobian_field, bounds, start,
+                     constraint=constraint, rounds=1 if source_free else 2, restyle=restyle)
+    pos, jac_field, finest = run_levels(loop, opts, progress)
+    forbidden = finest.forbidden
     if not source_free and forbidden[np.rint(pos[free]).astype(int)[:, 0],
                                       np.rint(pos[free]).astype(int)[:, 1]].any():
         raise OsmapError("the exemplars are too small to fill the mask from" if exemplars else

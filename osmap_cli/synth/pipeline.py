@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,6 +30,71 @@ class SynthResult:
     pixels: np.ndarray
     positions: np.ndarray
     jacobian: np.ndarray | None = None  # float32 (H, W, 2, 2) with control fields, else None
+
+
+@dataclass(frozen=True)
+class LevelLoop:
+    """What a coarse-to-fine run needs besides the options: `osmap synth`, `--also` (an atlas)
+    and `inpaint` / `tileable` (pinned pixels) differ only in these (see run_levels).
+
+    pyramid: the source images, finest first; out_shapes: the output (H, W) of each level.
+    jacobian_field(out_shape) -> float32 (H, W, 2, 2).
+    bounds(level, source_shape, jac_field) -> (lo, hi), the positions a candidate may take.
+    constraint(level, lo, hi) -> LevelConstraint or None (pinned pixels, forbidden positions).
+    start(level, lo, hi, constraint) -> the coarsest level's positions float (H, W, 2).
+    guides: per level (exemplar guide, output guide), or None (guided synthesis).
+    rounds: refinements per level; round r > 0 computes its features from
+    restyle(level, previous round's source image, pos) (a hole matched against its own fill).
+    """
+
+    pyramid: list
+    out_shapes: list
+    jacobian_field: Callable
+    bounds: Callable
+    start: Callable
+    constraint: Callable | None = None
+    guides: list | None = None
+    rounds: int = 1
+    restyle: Callable | None = None
+
+
+def run_levels(loop: LevelLoop, opts: SynthOptions, progress=None):
+    """The pyramid levels, coarsest first: start (or upsample the coarser level's positions,
+    then pin), then `loop.rounds` refinements of opts.sweeps (opts.coarse_sweeps at the
+    coarsest level) coherence sweeps. Returns (positions, the finest level's jacobian field,
+    its constraint). `progress` gets fractions of the whole work."""
+    levels = len(loop.pyramid)
+    total = float(1 + loop.rounds * (opts.coarse_sweeps + opts.sweeps * (levels - 1))) or 1.0
+
+    def advance(units):
+        if progress is not None:
+            progress(units / total)
+
+    pos = jac_field = constraint = None
+    for level in range(levels - 1, -1, -1):
+        image = loop.pyramid[level]
+        jac_field = loop.jacobian_field(loop.out_shapes[level])
+        lo, hi = loop.bounds(level, image.shape[:2], jac_field)
+        constraint = None if loop.constraint is None else loop.constraint(level, lo, hi)
+        if pos is None:
+            pos = loop.start(level, lo, hi, constraint)
+            advance(1)
+            sweeps = opts.coarse_sweeps
+        else:
+            pos = upsample(pos, loop.out_shapes[level], jac_field, lo, hi)
+            if constraint is not None:
+                pos = constraint.pin(pos)
+            sweeps = opts.sweeps
+        for round_ in range(loop.rounds):
+            if round_:
+                image = loop.restyle(level, image, pos)
+            feat = appearance_features([image], opts.feature_dims)[0]
+            pos = refine(pos, feat, jac_field, lo, hi, sweeps, opts, wrap=opts.tileable,
+                         seed=opts.seed, salt=level + 100 * round_, level_scale=2 ** level,
+                         coarsest_scale=2 ** (levels - 1), progress=advance,
+                         constraint=constraint,
+                         guides=None if loop.guides is None else loop.guides[level])
+    return pos, jac_field, constraint
 
 
 def valid_box(shape, jac: np.ndarray, radius: int):
@@ -79,52 +145,37 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
 
     out_shape = (opts.height, opts.width)
     levels = level_count([exemplar.shape[:2]], out_shape, opts.levels, min_size=MIN_LEVEL_SIZE)
-    pyramid = build_pyramid(exemplar, levels)
-    shapes = level_shapes(out_shape, levels)
     jac = opts.jacobian()
     if fields is not None:
         # the OS-Map lays out the coarsest level with one Jacobian summarising the fields;
         # the refinement then follows the per-pixel field at every level
         angle, scale = fields.representative(opts.orientation, opts.scale)
         jac = opts.replace(orientation=angle, scale=scale).jacobian()
-    wrap = opts.tileable
 
     def jacobian_field(shape):
         if fields is None:
             return np.broadcast_to(jac.astype(np.float32), (*shape, 2, 2)).copy()
         return fields.jacobian_field(shape, opts.orientation, opts.scale, opts.anisotropy)
 
-    work = [opts.coarse_sweeps + 1] + [opts.sweeps] * (levels - 1)
-    total = float(sum(work)) or 1.0
+    def bounds(level, shape, jac_field):
+        reach = jac if fields is None else np.abs(jac_field).max(axis=(0, 1))
+        return valid_box(shape, reach, opts.patch_radius)
 
-    def advance(units):
-        if progress is not None:
-            progress(units / total)
+    def start(level, lo, hi, constraint):
+        pos = organise(pyramid[level].shape[:2], shapes[level], jac, lo, hi, opts,
+                       wrap=opts.tileable, seed=opts.seed)
+        if fields is None and np.allclose(jac, np.eye(2)):
+            pos = np.rint(pos)
+        return pos
 
-    guides = [None] * levels
+    guides = None
     if target_guide is not None:
         from osmap_cli.synth.guide import guide_levels
         guides = list(zip(guide_levels(guide, exemplar.shape[:2], levels),
                           guide_levels(target_guide, out_shape, levels)))
-    pos = None
-    for level in range(levels - 1, -1, -1):
-        image = pyramid[level]
-        feat = appearance_features([image], opts.feature_dims)[0]
-        jac_field = jacobian_field(shapes[level])
-        reach = jac if fields is None else np.abs(jac_field).max(axis=(0, 1))
-        lo, hi = valid_box(image.shape[:2], reach, opts.patch_radius)
-        if pos is None:
-            pos = organise(image.shape[:2], shapes[level], jac, lo, hi, opts, wrap=wrap,
-                           seed=opts.seed)
-            if fields is None and np.allclose(jac, np.eye(2)):
-                pos = np.rint(pos)
-            advance(1)
-            sweeps = opts.coarse_sweeps
-        else:
-            pos = upsample(pos, shapes[level], jac_field, lo, hi)
-            sweeps = opts.sweeps
-        pos = refine(pos, feat, jac_field, lo, hi, sweeps, opts, wrap=wrap, seed=opts.seed,
-                     salt=level, level_scale=2 ** level,
-                     coarsest_scale=2 ** (levels - 1), progress=advance, guides=guides[level])
+    pyramid = build_pyramid(exemplar, levels)
+    shapes = level_shapes(out_shape, levels)
+    pos, jac_field, _ = run_levels(LevelLoop(pyramid, shapes, jacobian_field, bounds, start,
+                                             guides=guides), opts, progress)
     pixels = render(exemplar, pos, jac_field, *render_settings(opts))
     return SynthResult(pixels, pos, None if fields is None else jac_field)
