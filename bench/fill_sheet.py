@@ -4,9 +4,11 @@ docs/fill_inpaint.jpg: per exemplar, the image with a 64x64 hole (grey), its fil
 with an irregular hole, its fill (seed 0, defaults). docs/fill_tileable.jpg: per exemplar, the
 photo tiled 2x2 and the `osmap tileable` result tiled 2x2 (default border: an eighth of the
 shorter side), each cell the 256x256 centre of the tiling, where the four copies meet (a cross
-of seams for the photo). Images are shown 1:1 in 256x256 cells.
+of seams for the photo). docs/fill_exemplar.jpg (`inpaint --exemplar`): per exemplar, its top
+part (H/2 + 16 rows) with a 40x40 hole (grey), the hole filled from the bottom part alone,
+and that bottom part (the exemplar EX). Images are shown 1:1 in 256x256 cells.
 
-    python bench/fill_sheet.py [--exemplars DIR] [--names a,b,c]
+    python bench/fill_sheet.py [--exemplars DIR] [--names a,b,c] [--sheets inpaint,tileable,exemplar]
 """
 
 from __future__ import annotations
@@ -43,6 +45,13 @@ def blob_hole(shape):
     return radius < 30 + 10 * np.sin(3 * angle) + 6 * np.cos(5 * angle + 1)
 
 
+def exemplar_split(image):
+    """(top part, bottom part, 40x40 hole at the top part's centre) of an image."""
+    split = image.shape[0] // 2 + 16
+    top, bottom = image[:split], image[split:]
+    return top, bottom, square_hole(top.shape[:2], 40)
+
+
 def crossing(image):
     """The centre CELL x CELL of the image tiled 2x2: where its four copies meet."""
     tiled = np.tile(image, (2, 2, 1))
@@ -73,22 +82,32 @@ def main():
     parser.add_argument("--exemplars", default=os.path.join(os.path.dirname(__file__), "..",
                                                               "..", "shared", "exemplars"))
     parser.add_argument("--names", default=",".join(NAMES))
+    parser.add_argument("--sheets", default="inpaint,tileable,exemplar")
     args = parser.parse_args()
-    inpaint_rows, tile_rows = [], []
+    sheets = args.sheets.split(",")
+    inpaint_rows, tile_rows, exemplar_rows = [], [], []
     for name in args.names.split(","):
         image = read_image(os.path.join(args.exemplars, name + ".png")).pixels[..., :3]
         if image.shape[2] == 1:
             image = np.repeat(image, 3, axis=2)
-        row = []
-        for hole in (square_hole(image.shape[:2]), blob_hole(image.shape[:2])):
-            shown = np.where(hole[..., None], 0.5, image)
-            row += [shown, inpaint(image, hole, SynthOptions(seed=0)).pixels]
-        inpaint_rows.append(row)
-        tiled = make_tileable(image).pixels
-        tile_rows.append([crossing(image), crossing(tiled)])
+        if "inpaint" in sheets:
+            row = []
+            for hole in (square_hole(image.shape[:2]), blob_hole(image.shape[:2])):
+                shown = np.where(hole[..., None], 0.5, image)
+                row += [shown, inpaint(image, hole, SynthOptions(seed=0)).pixels]
+            inpaint_rows.append(row)
+        if "tileable" in sheets:
+            tiled = make_tileable(image).pixels
+            tile_rows.append([crossing(image), crossing(tiled)])
+        if "exemplar" in sheets:
+            top, bottom, hole = exemplar_split(image)
+            filled = inpaint(top, hole, SynthOptions(seed=0), exemplars=[bottom]).pixels
+            exemplar_rows.append([np.where(hole[..., None], 0.5, top), filled, bottom])
         print(name, flush=True)
-    write_image(os.path.join(DOCS, "fill_inpaint.jpg"), sheet(inpaint_rows), 8)
-    write_image(os.path.join(DOCS, "fill_tileable.jpg"), sheet(tile_rows), 8)
+    for rows, file in ((inpaint_rows, "fill_inpaint.jpg"), (tile_rows, "fill_tileable.jpg"),
+                       (exemplar_rows, "fill_exemplar.jpg")):
+        if rows:
+            write_image(os.path.join(DOCS, file), sheet(rows), 8)
 
 
 if __name__ == "__main__":
