@@ -8,7 +8,7 @@ of seams for the photo). docs/fill_exemplar.jpg (`inpaint --exemplar`): per exem
 part (H/2 + 16 rows) with a 40x40 hole (grey), the hole filled from the bottom part alone,
 and that bottom part (the exemplar EX). Images are shown 1:1 in 256x256 cells.
 
-    python bench/fill_sheet.py [--exemplars DIR] [--names a,b,c] [--sheets inpaint,tileable,exemplar]
+    python bench/fill_sheet.py [--exemplars DIR] [--names a,b] [--sheets inpaint,tileable,exemplar]
 """
 
 from __future__ import annotations
