@@ -371,6 +371,8 @@ def test_inpaint_exemplar_cli(material, samples, run_cli, tmp_path):
     for args, code, phrase in (
             (("--exemplar", gray), 1, "gray.png: 1 channels"),
             (("--exemplar", folder / "none.png"), 1, "none.png"),
+            (("--exemplar", _write(folder / "tiny.png", np.full((5, 5, 3), 0.5))), 1,
+             "tiny.png: the exemplars are too small"),
             (("--exemplar", red, "--with", f"r={material['rough']}"), 2, "--with"),
             (("--exemplar", red, "--uv-out", tmp_path / "uv.exr"), 2, "--uv-out")):
         result = run_cli("inpaint", material["image"], "--mask", material["mask"], "-o", bad,
@@ -380,3 +382,20 @@ def test_inpaint_exemplar_cli(material, samples, run_cli, tmp_path):
         assert "Traceback" not in result.err
     text = " ".join(run_cli("inpaint", "--help").out.split())
     assert "--exemplar EX" in text and "osmap inpaint wall.png --mask hole.png --exemplar" in text
+
+
+def test_inpaint_exemplar_same_bytes_any_threads(material, samples, osmap_exe, tmp_path):
+    from osmap_cli.imageio import read_image
+
+    red = _write(tmp_path / "red.png",
+                 _tinted(read_image(samples / "brick.png").pixels[:48, :64], (1, 0.2, 0.1)))
+    outputs = []
+    for threads in ("1", "2"):
+        path = tmp_path / f"t{threads}.png"
+        run = subprocess.run([osmap_exe, "inpaint", str(material["image"]), "--mask",
+                              str(material["mask"]), "--exemplar", str(red), "-o", str(path)],
+                             capture_output=True, text=True,
+                             env=dict(os.environ, NUMBA_NUM_THREADS=threads))
+        assert run.returncode == 0, run.stderr
+        outputs.append(path.read_bytes())
+    assert outputs[0] == outputs[1]

@@ -139,9 +139,15 @@ class FillJob(SynthJob):
         ensure_compiled(None if self.quiet else announce)  # as osmap synth: said, in parallel
         options = self.sized(inputs).options
         with ProgressBar(enabled=self.progress, desc=self.label) as progress:
-            return fill(inputs.image.pixels, inputs.free, options,
-                        source_free=self.mode == "tileable", progress=progress,
-                        exemplars=inputs.exemplars)
+            try:
+                return fill(inputs.image.pixels, inputs.free, options,
+                            source_free=self.mode == "tileable", progress=progress,
+                            exemplars=inputs.exemplars)
+            except OsmapError as exc:
+                # name the files the refusal is about (the mask's, or the exemplars')
+                named = ", ".join(self.exemplars) or (
+                    self.mask if self.mask not in (None, "alpha") else self.exemplar)
+                raise OsmapError(f"{named}: {exc}") from None
 
     def stage(self, outputs, inputs, result):
         from osmap_cli.imageio import encode_image
