@@ -114,11 +114,13 @@ def kopf_search(vol, pos, new_pos, dist, feats, basis, mean, ex_of_axis, knn, p)
                             for ch in range(nc):
                                 window[i] = vol[qz, qy, qx, ch] - mean[i]
                                 i += 1
-                    for d in range(dims):
-                        t = 0.0
-                        for j in range(n * n * nc):
-                            t += window[j] * basis[j, d]
-                        query[d] = t
+                    # j outer, d inner: each query[d] still sums in j order (same bits as a
+                    # dot product per d), but the inner loop runs along a basis row: SIMD
+                    query[:] = 0.0
+                    for j in range(n * n * nc):
+                        w = window[j]
+                        for d in range(dims):
+                            query[d] += w * basis[j, d]
                     lr, hr = p.lo[e, 0], p.hi[e, 0]
                     lc, hc = p.lo[e, 1], p.hi[e, 1]
                     br = min(max(pos[a, z, y, x, 0], lr), hr)
