@@ -27,7 +27,7 @@ ANNOUNCEMENT = "osmap: compiling kernels, first run only (about {seconds} s)"
 def _dispatchers(group: str) -> list:
     if group == "organise":
         from osmap_kernels import coherence, regions, render, som
-        return [coherence.usage_counts, regions.copy_region_areas, som.train_steps,
+        return [coherence.usage_counts, regions.copy_region_areas, som.train_general,
                 render._vote_rows]
     from osmap_kernels import coherence, regions
     return [coherence._knn_rows, coherence._refine_rows, regions.align_regions]
