@@ -61,7 +61,7 @@ def _label_counts(labels):
     return counts
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def copy_region_labels(pos, jac, wrap):
     """Label of every pixel's copy region: the scan index of its first pixel. int64[H, W]."""
     H, W = pos.shape[0], pos.shape[1]
@@ -106,7 +106,7 @@ def copy_region_areas(pos, jac, wrap):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _border_pixels(labels, radius, wrap):
     """(region, pixel) pairs, sorted by region: pixel b is on region R's border when b's
     matching window holds pixels of R and of another region, i.e. when shifting R changes b's
@@ -151,7 +151,7 @@ def _border_pixels(labels, radius, wrap):
     return regions, pixels
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _border_terms(pos, labels, group, area, feat, jac, border, region, p, terms):
     """The border cost terms that change when `region` moves by a shift d, in a form that
     costs each shift cheaply: matching terms |fixed - feat(base + d)|^2 (a pixel of the region
@@ -208,7 +208,7 @@ def _border_terms(pos, labels, group, area, feat, jac, border, region, p, terms)
     return fixed[:n], base[:n], target[:m], merges[:m], others[:m]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _scratch(longest_border, radius, nf):
     """Scratch arrays for _border_terms, large enough for a border of `longest_border` pixels:
     allocated once per pass rather than once per region."""
@@ -241,7 +241,7 @@ def _shift_cost(feat, fixed, base, target, merges, sy, sx, seam, limit):
     return total
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _shifts_by_length(reach):
     """Every (dy, dx) with |dy|, |dx| <= reach, shortest first (ties in scan order), so that
     among equally good shifts the smallest wins; (0, 0) first."""
@@ -260,7 +260,7 @@ def _shifts_by_length(reach):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _best_shift(feat, fixed, base, target, merges, shifts, lo_pos, hi_pos, p):
     """Index into shifts of the cheapest shift that keeps the region's positions (extent lo_pos
     to hi_pos) inside [p.lo, p.hi]; 0 (no shift) unless another is strictly cheaper."""
@@ -278,7 +278,7 @@ def _best_shift(feat, fixed, base, target, merges, shifts, lo_pos, hi_pos, p):
     return best
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _region_extents(pos, labels):
     """Per label, the smallest and largest exemplar position of its pixels: [H*W, 2] x 2, in
     pos's dtype (float32 in synth: exact, and half the memory of float64 at large sizes)."""
@@ -294,7 +294,7 @@ def _region_extents(pos, labels):
     return lo_pos, hi_pos
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _region_starts(regions):
     """Start index of each run of equal labels in the sorted `regions`, and the end; and the
     longest run."""

@@ -5,8 +5,8 @@ classic Kohonen SOM, the paper's OS-Map, and our extensions (coherent targets, r
 periodic data components). The one specialisation is `update_classic`: for Kohonen's update
 (target x, nothing else) each row of nodes is updated in a loop the compiler vectorises, with
 the general loop's arithmetic, so the weights are the same bit for bit. `train_steps` picks the
-update in Python and calls one of two compiled entry points (`train_general`, `train_classic`)
-of the one step loop `_train`, so that synthesis compiles only the general update. Everything
+update in Python and calls one of two specialisations of the compiled step loop `_train`, so
+that synthesis compiles only the general update. Everything
 random (inputs, window positions) and the schedule values are computed by the caller, so the
 kernel is a pure function of its arrays and is deterministic.
 
@@ -155,7 +155,7 @@ def _block_min(out, n):
     return a0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _scan_run(flat, d, i0, n, x, periods, dists, best, best_dist):
     """Fold nodes i0 .. i0 + n - 1 (in that order) into the running (best, best_dist) minimum,
     a block of len(dists) nodes at a time: distances, their minimum, and only when it beats the
@@ -184,7 +184,7 @@ def find_winner(weights, x, grid, origin, window, periods, dists):
                              dists)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _find_winner_flat(weights, flat, x, grid, origin, window, periods, dists):
     """`find_winner`, given also the weights as one C-order vector `flat` (the same memory)."""
     # np.int64 rather than bare literals for values passed on to other kernels: a literal
@@ -338,7 +338,7 @@ def _ring_bound(x, comp, c, r, cells, corner, size):
     return bound
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _scan_cell(weights, x, cell, head, links, grid, origin, window, whole, periods, best,
                best_dist, best_rank):
     """Fold the nodes filed under `cell` into the running (distance, scan rank) minimum.
@@ -362,7 +362,7 @@ def _scan_cell(weights, x, cell, head, links, grid, origin, window, whole, perio
     return best, best_dist, best_rank
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def find_winner_buckets(weights, x, grid, origin, window, periods, b):
     """`find_winner` through the inverse map b: the same node (ties: first in scan order).
 
@@ -493,7 +493,7 @@ def _axis_range(c, radius, g, wrap):
     return max(-radius, -c), min(radius, g - 1 - c)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _update_box(c, sigma, p, frame, tables, bounds):
     """The update's box around winner c, as offsets bounds[0] <= D <= bounds[1], and on the
     separable path the 1D factors tables[k, a, D_a - bounds[0, a]] = exp(-A_k,aa D_a^2 / 2
@@ -528,7 +528,7 @@ def _update_box(c, sigma, p, frame, tables, bounds):
     return c0, c1, c2
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def update_neighbourhood(weights, c, x, alpha, sigma, p, tables, scratch, bounds, b, refile):
     """m_i += h_ci (target_i - m_i) for the nodes around winner c (one OS-Map step, eq. 1-4).
 
@@ -699,7 +699,8 @@ def is_classic(p) -> bool:
 def _train(weights, inputs, origins, alphas, sigmas, p, b, bucket_from, classic):
     """`train_steps`, with `update_classic` when `classic` is True and `update_neighbourhood`
     when it is None. A None argument is a compile-time constant: Numba prunes the classic branch
-    before typing it, so `train_general` compiles neither `update_classic` nor its helpers."""
+    before typing it, so the general specialisation compiles neither `update_classic` nor its
+    helpers."""
     d = weights.shape[1]
     max_len = 2 * max(p.grid[0], p.grid[1], p.grid[2]) + 1
     tables = np.empty((d, 3, max_len))
@@ -730,18 +731,6 @@ def _train(weights, inputs, origins, alphas, sigmas, p, b, bucket_from, classic)
     return winners
 
 
-@njit(cache=True, error_model="numpy")
-def train_general(weights, inputs, origins, alphas, sigmas, p, b, bucket_from):
-    """`train_steps` with the general update (`update_neighbourhood`): what synthesis uses."""
-    return _train(weights, inputs, origins, alphas, sigmas, p, b, bucket_from, None)
-
-
-@njit(cache=True, error_model="numpy")
-def train_classic(weights, inputs, origins, alphas, sigmas, p, b, bucket_from):
-    """`train_steps` with the classic update (`update_classic`; `is_classic(p)` must hold)."""
-    return _train(weights, inputs, origins, alphas, sigmas, p, b, bucket_from, True)
-
-
 def train_steps(weights, inputs, origins, alphas, sigmas, p, b, bucket_from):
     """Run len(inputs) OS-Map steps in place: winner in the window at origins[t], then update.
 
@@ -751,9 +740,10 @@ def train_steps(weights, inputs, origins, alphas, sigmas, p, b, bucket_from):
     only changes the speed (scanning is cheaper while the updates are wide and the map moves a
     lot, the inverse map once the radius has shrunk). Returns the winners (int64[T]).
 
-    The update is chosen here, in Python, between two compiled entry points that share every
-    helper: `train_classic` (Kohonen's update, `is_classic`) and `train_general`. A run compiles
-    only the one it calls (synthesis never takes the classic path).
+    The update is chosen here, in Python: the compiled step loop `_train` is called with
+    classic=True (Kohonen's update, `is_classic`) or classic=None (the general update), two
+    specialisations sharing every helper; a run compiles only the one it calls (synthesis never
+    takes the classic path).
     """
-    kernel = train_classic if is_classic(p) else train_general
-    return kernel(weights, inputs, origins, alphas, sigmas, p, b, bucket_from)
+    classic = True if is_classic(p) else None
+    return _train(weights, inputs, origins, alphas, sigmas, p, b, bucket_from, classic)
