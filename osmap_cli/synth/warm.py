@@ -109,9 +109,11 @@ def ensure_compiled(announce=None) -> bool:
 
 
 def _compile(groups: list[str], workers: int) -> None:
-    """Compile the groups: all but the first in child processes (`python -m
-    osmap_cli.synth.warm GROUP`, at most workers - 1 at a time), the first here meanwhile."""
+    """Compile the groups: all but the largest in child processes (`python -m
+    osmap_cli.synth.warm GROUP`, at most workers - 1 at a time), the largest here meanwhile (a
+    child first pays an interpreter start-up and the imports, about a second)."""
     env = dict(os.environ, NUMBA_NUM_THREADS="1")
+    groups = sorted(groups, key=GROUP_SECONDS.get, reverse=True)
     here, rest = groups[0], groups[1:]
     children = []
     if workers > 1:
