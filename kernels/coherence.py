@@ -84,8 +84,10 @@ def _total_cost(src, area, y, x, feat, cy, cx, J, nb, nb_ok, occ, p, best, buf, 
                                                                           cx, p)
     if seam >= best:
         return np.inf
-    return seam + _candidate_cost(feat, cy, cx, J, p.radius, nb, nb_ok, occ, p.lam, best - seam,
-                                  buf)
+    # cy, cx as float64 (exact): one compiled _candidate_cost for the float32 current position
+    # and the float64 candidates (it computes in float64 either way)
+    return seam + _candidate_cost(feat, np.float64(cy), np.float64(cx), J, p.radius, nb, nb_ok,
+                                  occ, p.lam, best - seam, buf)
 
 
 @njit(cache=True)
@@ -264,7 +266,8 @@ def _knn_rows(feat, lo0, hi0, lo1, hi1, k, stride, exclude, out, y0, y1):
                         j = k - 1
                         while j > 0 and best_d[j - 1] > dist:
                             best_d[j] = best_d[j - 1]
-                            best_i[j] = best_i[j - 1]
+                            best_i[j, 0] = best_i[j - 1, 0]  # not best_i[j] = best_i[j - 1]:
+                            best_i[j, 1] = best_i[j - 1, 1]  # see som._update_box
                             j -= 1
                         best_d[j] = dist
                         best_i[j, 0] = ry

@@ -33,6 +33,35 @@ def _find(parent, i):
 
 
 @njit(cache=True)
+def _stable_order(keys, n_keys):
+    """The stable sorting permutation of integer keys in [0, n_keys) (a counting sort: the same
+    order as np.argsort(keys, kind="mergesort"), without compiling Numba's merge sort), and
+    starts: the sorted positions of key k are starts[k] .. starts[k + 1] - 1."""
+    starts = np.zeros(n_keys + 1, np.int64)
+    for i in range(keys.shape[0]):
+        starts[keys[i] + 1] += 1
+    for k in range(n_keys):
+        starts[k + 1] += starts[k]
+    order = np.empty(keys.shape[0], np.int64)
+    fill = starts[:n_keys].copy()
+    for i in range(keys.shape[0]):
+        k = keys[i]
+        order[fill[k]] = i
+        fill[k] += 1
+    return order, starts
+
+
+@njit(cache=True)
+def _label_counts(labels):
+    """Pixels per label (labels int64[H, W] in [0, H*W)): float64[H*W]."""
+    counts = np.zeros(labels.shape[0] * labels.shape[1])
+    for y in range(labels.shape[0]):
+        for x in range(labels.shape[1]):
+            counts[labels[y, x]] += 1.0
+    return counts
+
+
+@njit(cache=True, inline="always")
 def copy_region_labels(pos, jac, wrap):
     """Label of every pixel's copy region: the scan index of its first pixel. int64[H, W]."""
     H, W = pos.shape[0], pos.shape[1]
@@ -69,7 +98,7 @@ def copy_region_areas(pos, jac, wrap):
     """Area of the verbatim-copy region around every pixel (see copy_region_labels).
     float32[H, W]."""
     labels = copy_region_labels(pos, jac, wrap)
-    counts = np.bincount(labels.ravel())
+    counts = _label_counts(labels)
     out = np.empty(labels.shape, np.float32)
     for y in range(labels.shape[0]):
         for x in range(labels.shape[1]):
@@ -77,7 +106,7 @@ def copy_region_areas(pos, jac, wrap):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _border_pixels(labels, radius, wrap):
     """(region, pixel) pairs, sorted by region: pixel b is on region R's border when b's
     matching window holds pixels of R and of another region, i.e. when shifting R changes b's
@@ -113,11 +142,16 @@ def _border_pixels(labels, radius, wrap):
                 out_region[n] = found[j]
                 out_pixel[n] = y * W + x
                 n += 1
-    order = np.argsort(out_region[:n], kind="mergesort")
-    return out_region[:n][order], out_pixel[:n][order]
+    order, _ = _stable_order(out_region[:n], H * W)
+    regions = np.empty(n, np.int64)
+    pixels = np.empty(n, np.int64)
+    for j in range(n):
+        regions[j] = out_region[order[j]]
+        pixels[j] = out_pixel[order[j]]
+    return regions, pixels
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _border_terms(pos, labels, group, area, feat, jac, border, region, p, terms):
     """The border cost terms that change when `region` moves by a shift d, in a form that
     costs each shift cheaply: matching terms |fixed - feat(base + d)|^2 (a pixel of the region
@@ -174,7 +208,7 @@ def _border_terms(pos, labels, group, area, feat, jac, border, region, p, terms)
     return fixed[:n], base[:n], target[:m], merges[:m], others[:m]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _scratch(longest_border, radius, nf):
     """Scratch arrays for _border_terms, large enough for a border of `longest_border` pixels:
     allocated once per pass rather than once per region."""
@@ -207,7 +241,7 @@ def _shift_cost(feat, fixed, base, target, merges, sy, sx, seam, limit):
     return total
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _shifts_by_length(reach):
     """Every (dy, dx) with |dy|, |dx| <= reach, shortest first (ties in scan order), so that
     among equally good shifts the smallest wins; (0, 0) first."""
@@ -218,15 +252,21 @@ def _shifts_by_length(reach):
         shifts[j, 0] = j // side - reach
         shifts[j, 1] = j % side - reach
         lengths[j] = shifts[j, 0] ** 2 + shifts[j, 1] ** 2
-    return shifts[np.argsort(lengths, kind="mergesort")]
+    order, _ = _stable_order(lengths, 2 * reach * reach + 1)
+    out = np.empty((side * side, 2), np.int64)
+    for j in range(side * side):
+        out[j, 0] = shifts[order[j], 0]
+        out[j, 1] = shifts[order[j], 1]
+    return out
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _best_shift(feat, fixed, base, target, merges, shifts, lo_pos, hi_pos, p):
     """Index into shifts of the cheapest shift that keeps the region's positions (extent lo_pos
     to hi_pos) inside [p.lo, p.hi]; 0 (no shift) unless another is strictly cheaper."""
     best = 0
-    best_cost = _shift_cost(feat, fixed, base, target, merges, 0, 0, p.seam, np.inf)
+    zero = np.int64(0)  # not a literal 0: that would compile _shift_cost a second time
+    best_cost = _shift_cost(feat, fixed, base, target, merges, zero, zero, p.seam, np.inf)
     for j in range(1, shifts.shape[0]):
         sy, sx = shifts[j, 0], shifts[j, 1]
         if (lo_pos[0] + sy < p.lo[0] or hi_pos[0] + sy > p.hi[0]
@@ -238,7 +278,7 @@ def _best_shift(feat, fixed, base, target, merges, shifts, lo_pos, hi_pos, p):
     return best
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _region_extents(pos, labels):
     """Per label, the smallest and largest exemplar position of its pixels: [H*W, 2] x 2, in
     pos's dtype (float32 in synth: exact, and half the memory of float64 at large sizes)."""
@@ -254,15 +294,24 @@ def _region_extents(pos, labels):
     return lo_pos, hi_pos
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _region_starts(regions):
-    """Start index of each run of equal labels in the sorted `regions`, and the end."""
-    starts = [0]
+    """Start index of each run of equal labels in the sorted `regions`, and the end; and the
+    longest run."""
+    runs = 1
     for i in range(1, regions.shape[0]):
         if regions[i] != regions[i - 1]:
-            starts.append(i)
-    starts.append(regions.shape[0])
-    return np.array(starts, np.int64)
+            runs += 1
+    starts = np.empty(runs + 1, np.int64)
+    starts[0] = 0
+    j = 1
+    longest = 0
+    for i in range(1, regions.shape[0] + 1):
+        if i == regions.shape[0] or regions[i] != regions[i - 1]:
+            starts[j] = i
+            longest = max(longest, i - starts[j - 1])
+            j += 1
+    return starts, longest
 
 
 @njit(cache=True)
@@ -280,15 +329,13 @@ def align_regions(pos, feat, jac, p):
     regions, pixels = _border_pixels(labels, p.radius, p.wrap)
     if regions.shape[0] == 0:
         return pos
-    starts = _region_starts(regions)
+    starts, longest = _region_starts(regions)
     lo_pos, hi_pos = _region_extents(pos, labels)
-    flat = labels.ravel()
-    area = np.bincount(flat, minlength=H * W).astype(np.float64)
+    area = _label_counts(labels)
     group = np.arange(H * W)  # copies merged by this pass's shifts (union-find over labels)
-    members = np.argsort(flat, kind="mergesort")
-    member_labels = flat[members]
+    members, member_starts = _stable_order(labels.ravel(), H * W)  # pixels by label
     shifts = _shifts_by_length(p.reach)
-    terms = _scratch(np.max(np.diff(starts)), p.radius, feat.shape[2])
+    terms = _scratch(longest, p.radius, feat.shape[2])
     for i in range(starts.shape[0] - 1):
         region = regions[starts[i]]
         border = pixels[starts[i]:starts[i + 1]]
@@ -299,13 +346,11 @@ def align_regions(pos, feat, jac, p):
         if j == 0:
             continue
         sy, sx = shifts[j, 0], shifts[j, 1]
-        m = np.searchsorted(member_labels, region)
-        while m < H * W and member_labels[m] == region:
+        for m in range(member_starts[region], member_starts[region + 1]):
             y = members[m] // W
             x = members[m] - y * W
             pos[y, x, 0] += sy
             pos[y, x, 1] += sx
-            m += 1
         for m in range(target.shape[0]):  # the copies it now continues are one copy
             if abs(target[m, 0] - sy) <= 1e-3 and abs(target[m, 1] - sx) <= 1e-3:
                 a = _find(group, region)

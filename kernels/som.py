@@ -4,9 +4,11 @@ One kernel, specialised by the parameter record rather than copied: the same loo
 classic Kohonen SOM, the paper's OS-Map, and our extensions (coherent targets, range kernel,
 periodic data components). The one specialisation is `update_classic`: for Kohonen's update
 (target x, nothing else) each row of nodes is updated in a loop the compiler vectorises, with
-the general loop's arithmetic, so the weights are the same bit for bit. Everything random
-(inputs, window positions) and the schedule values are computed by the caller, so the kernel is
-a pure function of its arrays and is deterministic.
+the general loop's arithmetic, so the weights are the same bit for bit. `train_steps` picks the
+update in Python and calls one of two specialisations of the compiled step loop `_train`, so
+that synthesis compiles only the general update. Everything
+random (inputs, window positions) and the schedule values are computed by the caller, so the
+kernel is a pure function of its arrays and is deterministic.
 
 Map nodes live on a grid padded to three axes (a 2D map of shape (H, W) is (1, H, W)); node i has
 grid coordinates (i // (g1*g2), (i // g2) % g1, i % g2). D is the map-space vector from the winner
@@ -153,7 +155,7 @@ def _block_min(out, n):
     return a0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _scan_run(flat, d, i0, n, x, periods, dists, best, best_dist):
     """Fold nodes i0 .. i0 + n - 1 (in that order) into the running (best, best_dist) minimum,
     a block of len(dists) nodes at a time: distances, their minimum, and only when it beats the
@@ -182,10 +184,12 @@ def find_winner(weights, x, grid, origin, window, periods, dists):
                              dists)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _find_winner_flat(weights, flat, x, grid, origin, window, periods, dists):
     """`find_winner`, given also the weights as one C-order vector `flat` (the same memory)."""
-    best = -1
+    # np.int64 rather than bare literals for values passed on to other kernels: a literal
+    # argument (-1, 0) makes Numba compile the callee once more for the literal's own type
+    best = np.int64(-1)
     best_dist = np.inf
     d = weights.shape[1]
     if window[2] == grid[2] and origin[2] == 0 and window[1] * grid[2] >= LONG_RUN:
@@ -193,7 +197,7 @@ def _find_winner_flat(weights, flat, x, grid, origin, window, periods, dists):
         # nodes (split where axis 1 wraps), scanned block-wise
         for o0 in range(window[0]):
             a0 = _wrap_index(origin[0] + o0, grid[0])
-            start = 0
+            start = np.int64(0)
             while start < window[1]:
                 a1, stop = _run(origin[1], start, window[1] - 1, grid[1])
                 i0 = (a0 * grid[1] + a1) * grid[2]
@@ -206,7 +210,7 @@ def _find_winner_flat(weights, flat, x, grid, origin, window, periods, dists):
         for o1 in range(window[1]):
             base = (a0 * grid[1] + _wrap_index(origin[1] + o1, grid[1])) * grid[2]
             # the row as one or two contiguous runs of node indices
-            start = 0
+            start = np.int64(0)
             while start < window[2]:
                 a2, stop = _run(origin[2], start, window[2] - 1, grid[2])
                 i0 = base + a2
@@ -334,7 +338,7 @@ def _ring_bound(x, comp, c, r, cells, corner, size):
     return bound
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _scan_cell(weights, x, cell, head, links, grid, origin, window, whole, periods, best,
                best_dist, best_rank):
     """Fold the nodes filed under `cell` into the running (distance, scan rank) minimum.
@@ -358,7 +362,7 @@ def _scan_cell(weights, x, cell, head, links, grid, origin, window, whole, perio
     return best, best_dist, best_rank
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def find_winner_buckets(weights, x, grid, origin, window, periods, b):
     """`find_winner` through the inverse map b: the same node (ties: first in scan order).
 
@@ -375,8 +379,8 @@ def find_winner_buckets(weights, x, grid, origin, window, periods, b):
     cx2 = _axis_cell(x, k2, corner[2], inv[2], s2)
     margin = 1e-9 * (size[0] + size[1] + size[2])  # rounding in cell assignment and distances
     whole = window[0] == grid[0] and window[1] == grid[1] and window[2] == grid[2]
-    best, best_dist, best_rank = -1, np.inf, -1
-    r = 0
+    best, best_dist, best_rank = np.int64(-1), np.inf, np.int64(-1)  # see _find_winner_flat
+    r = np.int64(0)
     while True:
         bound = min(_ring_bound(x, k0, cx0, r, s0, corner[0], size[0]),
                     _ring_bound(x, k1, cx1, r, s1, corner[1], size[1]),
@@ -489,7 +493,7 @@ def _axis_range(c, radius, g, wrap):
     return max(-radius, -c), min(radius, g - 1 - c)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _update_box(c, sigma, p, frame, tables, bounds):
     """The update's box around winner c, as offsets bounds[0] <= D <= bounds[1], and on the
     separable path the 1D factors tables[k, a, D_a - bounds[0, a]] = exp(-A_k,aa D_a^2 / 2
@@ -513,14 +517,18 @@ def _update_box(c, sigma, p, frame, tables, bounds):
             for a in range(3):
                 caa = quad[k, a, a]
                 if k > 0 and caa == quad[k - 1, a, a]:
-                    tables[k, a, :hi[a] - lo[a] + 1] = tables[k - 1, a, :hi[a] - lo[a] + 1]
-                    continue  # same factor as the previous component (e.g. isotropic maps)
+                    # same factor as the previous component (e.g. isotropic maps); copied in a
+                    # loop: an array-to-slice assignment compiles Numba's shape-mismatch error
+                    # message (string formatting), seconds of a first run's compile
+                    for j in range(hi[a] - lo[a] + 1):
+                        tables[k, a, j] = tables[k - 1, a, j]
+                    continue
                 for off in range(lo[a], hi[a] + 1):
                     tables[k, a, off - lo[a]] = np.exp(-caa * off * off * inv2s2)
     return c0, c1, c2
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def update_neighbourhood(weights, c, x, alpha, sigma, p, tables, scratch, bounds, b, refile):
     """m_i += h_ci (target_i - m_i) for the nodes around winner c (one OS-Map step, eq. 1-4).
 
@@ -678,27 +686,21 @@ def update_classic(weights, flat, c, x, alpha, sigma, p, tables, scratch, bounds
                 start = stop + 1
 
 
-@njit(cache=True, error_model="numpy")
-def is_classic(p):
-    """The classic SOM update (separable, target x, nothing else): `update_classic` applies."""
-    classic = p.separable and p.range_a == 0.0 and p.range_b == 0.0 and p.quad.shape[0] == 1
-    for k in range(p.periods.shape[0]):
-        classic = classic and p.periods[k] == 0.0 and p.lo[k] == -np.inf and p.hi[k] == np.inf
-        for a in range(3):
-            classic = classic and p.jac[k, a] == 0.0
-    return classic
+def is_classic(p) -> bool:
+    """The classic SOM update (separable, target x, nothing else): `update_classic` applies.
+    Plain Python, decided once per `train_steps` call, so that only the kernel a run uses is
+    compiled."""
+    classic = bool(p.separable) and p.range_a == 0.0 and p.range_b == 0.0 and p.quad.shape[0] == 1
+    return bool(classic and np.all(p.periods == 0.0) and np.all(p.lo == -np.inf)
+                and np.all(p.hi == np.inf) and np.all(p.jac == 0.0))
 
 
 @njit(cache=True, error_model="numpy")
-def train_steps(weights, inputs, origins, alphas, sigmas, p, b, bucket_from):
-    """Run len(inputs) OS-Map steps in place: winner in the window at origins[t], then update.
-
-    weights float32[N, d]; inputs float64[T, d]; origins int64[T, 3]; alphas, sigmas float64[T].
-    Steps t < bucket_from scan the window; from step bucket_from on (when b is active) the
-    inverse map b is filled and searched instead, which finds the same winners: the switch
-    only changes the speed (scanning is cheaper while the updates are wide and the map moves a
-    lot, the inverse map once the radius has shrunk). Returns the winners (int64[T]).
-    """
+def _train(weights, inputs, origins, alphas, sigmas, p, b, bucket_from, classic):
+    """`train_steps`, with `update_classic` when `classic` is True and `update_neighbourhood`
+    when it is None. A None argument is a compile-time constant: Numba prunes the classic branch
+    before typing it, so the general specialisation compiles neither `update_classic` nor its
+    helpers."""
     d = weights.shape[1]
     max_len = 2 * max(p.grid[0], p.grid[1], p.grid[2]) + 1
     tables = np.empty((d, 3, max_len))
@@ -707,7 +709,6 @@ def train_steps(weights, inputs, origins, alphas, sigmas, p, b, bucket_from):
     bounds = np.empty((2, 3), np.int64)
     cells = np.empty(p.grid[2], np.int64)
     flat = weights.reshape(-1)  # once: a reshape per step costs as much as a small window scan
-    classic = is_classic(p)
     winners = np.empty(inputs.shape[0], np.int64)
     use = False
     for t in range(inputs.shape[0]):
@@ -721,10 +722,28 @@ def train_steps(weights, inputs, origins, alphas, sigmas, p, b, bucket_from):
             c = _find_winner_flat(weights, flat, x, p.grid, origins[t], p.window, p.periods,
                                   dists)
         winners[t] = c
-        if classic:
-            update_classic(weights, flat, c, x, alphas[t], sigmas[t], p, tables, scratch, bounds,
-                           cells, b, use)
-        else:
+        if classic is None:
             update_neighbourhood(weights, c, x, alphas[t], sigmas[t], p, tables, scratch, bounds,
                                  b, use)
+        else:
+            update_classic(weights, flat, c, x, alphas[t], sigmas[t], p, tables, scratch, bounds,
+                           cells, b, use)
     return winners
+
+
+def train_steps(weights, inputs, origins, alphas, sigmas, p, b, bucket_from):
+    """Run len(inputs) OS-Map steps in place: winner in the window at origins[t], then update.
+
+    weights float32[N, d]; inputs float64[T, d]; origins int64[T, 3]; alphas, sigmas float64[T].
+    Steps t < bucket_from scan the window; from step bucket_from on (when b is active) the
+    inverse map b is filled and searched instead, which finds the same winners: the switch
+    only changes the speed (scanning is cheaper while the updates are wide and the map moves a
+    lot, the inverse map once the radius has shrunk). Returns the winners (int64[T]).
+
+    The update is chosen here, in Python: the compiled step loop `_train` is called with
+    classic=True (Kohonen's update, `is_classic`) or classic=None (the general update), two
+    specialisations sharing every helper; a run compiles only the one it calls (synthesis never
+    takes the classic path).
+    """
+    classic = True if is_classic(p) else None
+    return _train(weights, inputs, origins, alphas, sigmas, p, b, bucket_from, classic)
