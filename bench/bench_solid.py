@@ -3,7 +3,8 @@ the quality table from texmetrics.py and solidlook.py on the solid development e
 the default method (osmap), `--method kopf` and the previous default (`--method legacy`, the
 same as `--preset legacy`) side by side.
 
-`run(quick=False) -> str` returns the Markdown section "## Solid" (bench/run.py includes it).
+`run(quick=False) -> str` returns the Markdown section "## Solid" (bench/run.py includes it);
+`python bench/bench_solid.py --timing` prints only its timing table (about two minutes).
 Exemplars come from ../shared/exemplars/small (never copied into the repository); 64 px
 exemplars are those downscaled by OpenImageIO. Quality runs texmetrics.py in its own venv.
 """
@@ -135,8 +136,8 @@ def _unseen_material_row(name: str, side: int, folder: Path) -> str:
             f"{' / '.join(f'{r:.2f}' for r in ratios)} |")
 
 
-def run(quick: bool = False) -> str:
-    """The Markdown section "## Solid"."""
+def run(quick: bool = False, timing_only: bool = False) -> str:
+    """The Markdown section "## Solid" (`timing_only`: just its timing table, a few minutes)."""
     from osmap_cli.imageio import write_image
     from osmap_cli.solid.preview import render_preview
 
@@ -156,6 +157,8 @@ def run(quick: bool = False) -> str:
               "| method | volume | runs | median wall | min | max | median CPU |",
               "|---|---|---|---|---|---|---|", *rows, ""]
 
+    if timing_only:
+        return "\n".join(lines)
     if not TEXMETRICS_PY.exists():
         return "\n".join(lines + ["(texmetrics venv missing: no quality table)", ""])
     table = ["| exemplar | px -> volume | method | worst coh_mean | worst coh_p95 | "
@@ -210,4 +213,4 @@ def run(quick: bool = False) -> str:
 
 
 if __name__ == "__main__":
-    print(run(quick="--quick" in sys.argv))
+    print(run(quick="--quick" in sys.argv, timing_only="--timing" in sys.argv))
