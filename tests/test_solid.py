@@ -143,6 +143,12 @@ def test_memory_guard_refuses_with_the_amount(run_cli, exemplar, tmp_path, monke
     (("{ex}", "-o", "{tmp}/v.tif"), 1, "unsupported volume output"),
     (("{ex}", "-o", "{tmp}/v.npy", "--preset", "nope"), 2, "unknown solid preset"),
     (("{ex}", "-o", "{tmp}/a_1x2.png", "--size", "16"), 1, "fewer than"),
+    (("{ex}", "-o", "{tmp}/v.npy", "--orientation", "0,30"), 2, "three angles"),
+    (("{ex}", "-o", "{tmp}/v.npy", "--orientation", "0,400,0"), 2, "three angles"),
+    (("{ex}", "-o", "{tmp}/v.npy", "--orientation", "0,0,30", "--tileable"), 2,
+     "cannot wrap"),
+    (("{ex}", "-o", "{tmp}/v.npy", "--size", "1024", "--orientation", "0,0,45"), 2,
+     "1450-voxel side"),
 ])
 def test_bad_input_is_one_clear_line(run_cli, exemplar, tmp_path, args, code, text):
     args = [a.format(ex=exemplar, tmp=tmp_path) for a in args]
@@ -456,3 +462,51 @@ def test_slices_are_not_boxy_and_keep_the_colours(samples):
     hist_new, hist_old = (max(ts.histogram_distance(exemplar, s) for slices in
                               _axis_slices(v).values() for s in slices) for v in (new, old))
     assert hist_new < 0.75 * hist_old, (hist_new, hist_old)
+
+
+def test_turn_volume_samples_the_material_turned():
+    """Every output voxel reads the material at R^T p: a material whose voxels hold their own
+    (x, y, z) index returns exactly those coordinates (90 degrees: integer positions)."""
+    from osmap_cli.solid.orient import enclosing_shape, rotation_matrix, turn_volume
+
+    shape, angles = (6, 8, 10), (0.0, 0.0, 90.0)
+    material_shape = enclosing_shape(shape, angles)
+    z, y, x = np.meshgrid(*[np.arange(n, dtype=np.float32) for n in material_shape],
+                          indexing="ij")
+    material = np.stack([x, y, z], -1)
+    source = np.zeros((*material_shape, 3), np.int32)
+    out, turned_source = turn_volume(material, source, shape, angles)
+    assert out.shape == (*shape, 3) and turned_source.shape == (*shape, 3)
+    # output (x, y, z) about its centre -> material (x, y, z) = R^T p about the material's centre
+    back = rotation_matrix(angles).T
+    for zz, yy, xx in [(0, 0, 0), (5, 7, 9), (2, 3, 4)]:
+        p = np.array([xx, yy, zz]) - (np.array(shape[::-1]) - 1) / 2
+        q = back @ p + (np.array(material_shape[::-1]) - 1) / 2
+        assert np.allclose(out[zz, yy, xx], q, atol=1e-4)
+    # the material's x ramp runs along the output's y after a quarter turn about z
+    assert np.allclose(np.diff(out[..., 0], axis=1), 1.0, atol=1e-4)
+    assert np.allclose(np.diff(out[..., 0], axis=2), 0.0, atol=1e-4)
+
+
+def test_orientation_turns_the_synthesized_material(exemplar, run_cli, tmp_path):
+    """--orientation: the volume is the axis-aligned material of the enclosing box, sampled
+    turned; the CLI writes the library's volume and records the angles."""
+    from osmap_cli.provenance import read_provenance
+    from osmap_cli.solid.orient import turn_volume
+
+    pixels = read_image(exemplar).pixels
+    options = SolidOptions(width=SIDE, height=SIDE, depth=SIDE, seed=3, rotate_y=30.0,
+                           rotate_z=45.0).replace(**FAST)
+    turned = synthesize_solid([pixels], options)
+    z, y, x = options.synthesis_shape()
+    assert min(z, y, x) > SIDE
+    material = synthesize_solid([pixels], options.replace(width=x, height=y, depth=z,
+                                                          rotate_y=0.0, rotate_z=0.0))
+    voxels, source = turn_volume(material.voxels, material.source, options.shape,
+                                 options.angles)
+    assert np.array_equal(turned.voxels, voxels) and np.array_equal(turned.source, source)
+    result = _run(run_cli, exemplar, tmp_path / "t.npy", "--orientation", "0,30,45",
+                  "--preview", tmp_path / "t.png")
+    assert result.code == 0, result.err
+    assert np.array_equal(np.load(tmp_path / "t.npy"), turned.voxels)
+    assert '"rotate_z": 45.0' in read_provenance(str(tmp_path / "t.png")).get("options", "")

@@ -69,6 +69,11 @@ like that exemplar; axes not given use EXEMPLAR (which may be omitted
 when all three are given). All need the same number of channels.
 Anisotropic materials (wood grain along the exemplar's x): pass the grain
 exemplar for two axes and an end-grain or rotated view for the third.
+--orientation RX,RY,RZ turns the material (degrees about x, then y, then
+z): the grain then runs along any 3D direction. The material is made
+axis-aligned in a box that holds the turned volume (up to 5x the voxels
+and time at oblique angles) and sampled turned (trilinear). Not with
+--tileable.
 
 \b
 Output (--format, else by OUT's extension):
@@ -108,10 +113,30 @@ Examples:
   osmap solid marble.png -o marble_slices --size 96x64x128 --preview marble.png
   osmap solid granite.png -o granite_8x16.png --size 128 --tileable
   osmap solid --x end.png --y side.png --z side.png -o wood.nrrd --size 64
+  osmap solid --x end.png --y side.png --z top.png -o log.npy --size 64 --orientation 0,30,45
   osmap solid gravel.png -o gravel.npy --size 64 --uv-out gravel_uv.npy --seed 3
   osmap solid samples/*.png --out-dir vols --format nrrd --size 64 -j 2
   ls samples/*.png | osmap solid - --out-dir vols --name '{stem}_{depth}.npy' --json
 """
+
+
+class Angles(click.ParamType):
+    """RX,RY,RZ degrees."""
+
+    name = "RX,RY,RZ"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        parts = str(value).replace(" ", "").split(",")
+        try:
+            angles = tuple(float(p) for p in parts)
+        except ValueError:
+            angles = ()
+        if len(angles) != 3 or not all(-360.0 <= a <= 360.0 for a in angles):
+            self.fail(f"{value!r} is not three angles in degrees from -360 to 360 "
+                      "(example: 0,30,45)", param, ctx)
+        return angles
 
 
 class VolumeSize(click.ParamType):
@@ -158,6 +183,9 @@ class VolumeSize(click.ParamType):
 @click.option("--quality", type=click.Choice(("fast", "default", "high")), default="default",
               show_default=True, help="Speed / quality trade-off on top of the preset.")
 @click.option("--tileable", is_flag=True, help="The volume wraps around in x, y and z.")
+@click.option("--orientation", type=Angles(), default="0,0,0", show_default=True,
+              help="Turn the material: degrees about x, then y, then z (the grain along "
+                   "any 3D direction). Not with --tileable.")
 @click.option("--x", "ex_x", type=click.Path(path_type=str), default=None, metavar="FILE",
               help="Exemplar for the slices normal to x (rows z, cols y).")
 @click.option("--y", "ex_y", type=click.Path(path_type=str), default=None, metavar="FILE",
@@ -179,14 +207,16 @@ class VolumeSize(click.ParamType):
 @tuning_flags(SolidOptions)
 def solid_command(exemplars, output, out_dir, name_template, jobs, fail_fast, json_lines,
                   overwrite, scheduler, scheduler_file, threads, size, seed, preset, quality,
-                  tileable, ex_x, ex_y, ex_z, fmt, nrrd_encoding, preview, uv_out, quiet,
-                  **tuning):
+                  tileable, orientation, ex_x, ex_y, ex_z, fmt, nrrd_encoding, preview, uv_out,
+                  quiet, **tuning):
     cluster = cluster_spec(scheduler, scheduler_file, threads, jobs)
     loaded = load_preset(preset, "solid")
     x, y, z = size
     options = resolve_options(SolidOptions, loaded.values,
                               {"width": x, "height": y, "depth": z, "seed": seed,
-                               "quality": quality, "tileable": tileable}, tuning)
+                               "quality": quality, "tileable": tileable,
+                               "rotate_x": orientation[0], "rotate_y": orientation[1],
+                               "rotate_z": orientation[2]}, tuning)
 
     axis_files = [ex_x, ex_y, ex_z]
     if any(f is not None for f in axis_files):

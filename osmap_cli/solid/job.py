@@ -87,8 +87,11 @@ class SolidJob(Job):
             if path is not None:
                 volumeio.check_target(path, "npy")
         z, y, x = self.options.shape
-        check_memory(volume_bytes(self.options.shape, count, self.options.feature_dims),
-                     f"a {x}x{y}x{z} volume")
+        what = f"a {x}x{y}x{z} volume"
+        made = self.options.synthesis_shape()
+        if made != self.options.shape:
+            what += f" (turned: {made[2]}x{made[1]}x{made[0]} voxels of material)"
+        check_memory(volume_bytes(made, count, self.options.feature_dims), what)
 
     def compute(self, images):
         from osmap_cli.progress import ProgressBar

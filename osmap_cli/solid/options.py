@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from osmap_cli.errors import OsmapError
 from osmap_cli.options import Options, option
 
 QUALITIES = ("fast", "default", "high")
@@ -30,6 +31,10 @@ class SolidOptions(Options):
     seed: int = option(0, 0, 2**63 - 1, "random seed")
     tileable: bool = option(False, help="the volume wraps around in all three axes")
     quality: str = option("default", help="fast, default or high", choices=QUALITIES)
+    rotate_x: float = option(0.0, -360.0, 360.0, "the material turned about x, degrees "
+                             "(--orientation RX,RY,RZ: about x, then y, then z)")
+    rotate_y: float = option(0.0, -360.0, 360.0, "the material turned about y, degrees")
+    rotate_z: float = option(0.0, -360.0, 360.0, "the material turned about z, degrees")
     # --- tunables (solid preset keys and tuning flags) ---
     method: str = option("osmap", help="osmap: the OS-Map lays out the coarsest volume, then a "
                          "sharpened Kopf optimisation; kopf: Kopf et al. 2007 texture "
@@ -132,6 +137,31 @@ class SolidOptions(Options):
     def shape(self) -> tuple[int, int, int]:
         """(Z, Y, X) of the volume."""
         return (self.depth, self.height, self.width)
+
+    @property
+    def angles(self) -> tuple[float, float, float]:
+        """(rotate_x, rotate_y, rotate_z), degrees."""
+        return (self.rotate_x, self.rotate_y, self.rotate_z)
+
+    def synthesis_shape(self) -> tuple[int, int, int]:
+        """(Z, Y, X) of the volume synthesized: the output's, or with --orientation the
+        axis-aligned box that holds the turned output (osmap_cli.solid.orient)."""
+        from osmap_cli.solid.orient import enclosing_shape
+
+        return enclosing_shape(self.shape, self.angles)
+
+    def check_relations(self) -> None:
+        from osmap_cli.solid.orient import is_turned
+
+        if not is_turned(self.angles):
+            return
+        if self.tileable:
+            raise OsmapError("--orientation: a turned volume cannot wrap around; drop "
+                             "--tileable or the orientation")
+        big = max(self.synthesis_shape())
+        if big > MAX_SIDE:
+            raise OsmapError(f"--orientation: this turn needs a {big}-voxel side of axis-aligned "
+                             f"material (at most {MAX_SIDE}); make the volume smaller")
 
     def with_quality(self) -> SolidOptions:
         """The tunables adjusted for --quality (fast: less search; high: more)."""

@@ -16,6 +16,7 @@ import numpy as np
 
 from osmap_cli.engine import Orientation, OSMap, Schedule
 from osmap_cli.solid.options import SolidOptions
+from osmap_cli.solid.orient import is_turned, turn_volume
 from osmap_cli.texture.features import appearance_features, feature_variance
 from osmap_cli.texture.levels import level_count
 from osmap_cli.texture.occupancy import occupancy
@@ -192,6 +193,13 @@ def synthesize_solid(exemplars, options: SolidOptions, progress=None) -> SolidRe
     three (x, y, z) with equal channel counts. `progress(fraction)` is called as levels finish.
     """
     opts = options.validated().with_quality()  # validated: method is one of METHODS
+    if is_turned(opts.angles):
+        # the material axis-aligned in a box that holds the turned volume, then sampled turned
+        z, y, x = opts.synthesis_shape()
+        material = synthesize_solid(exemplars, options.replace(
+            width=x, height=y, depth=z, rotate_x=0.0, rotate_y=0.0, rotate_z=0.0), progress)
+        return SolidResult(*turn_volume(material.voxels, material.source, opts.shape,
+                                        opts.angles))
     if len(exemplars) == 1:
         images, ex_of_axis = [exemplars[0]], np.zeros(3, np.int64)
     else:
