@@ -26,6 +26,7 @@ from osmap_cli.synth.pipeline import (
     LevelLoop,
     SynthResult,
     run_levels,
+    uniform_jacobian,
     valid_box,
 )
 from osmap_cli.synth.render import render, render_settings
@@ -43,10 +44,11 @@ class Atlas:
     origins: tuple
     shapes: tuple
 
-    def inside(self) -> np.ndarray:
-        """bool (h, w): the atlas pixels that belong to an exemplar."""
+    def inside(self, first: int = 0) -> np.ndarray:
+        """bool (h, w): the atlas pixels that belong to an exemplar (to exemplar `first` and
+        those after it)."""
         mask = np.zeros(self.pixels.shape[:2], bool)
-        for (y, x), (h, w) in zip(self.origins, self.shapes):
+        for (y, x), (h, w) in zip(self.origins[first:], self.shapes[first:]):
             mask[y:y + h, x:x + w] = True
         return mask
 
@@ -58,6 +60,13 @@ class Atlas:
             hit = (rows > y - 0.5) & (rows < y + h - 0.5) & (cols > x - 0.5) & (cols < x + w - 0.5)
             out[hit] = i
         return out
+
+    def locate(self, positions: np.ndarray):
+        """(index, local): `index` as above, and float32 (H, W, 2) positions relative to their
+        exemplar's origin."""
+        index = self.index(positions)
+        origins = np.array(self.origins, np.float32)
+        return index, (positions - origins[np.maximum(index, 0)]).astype(np.float32)
 
 
 @dataclass(frozen=True)
@@ -122,9 +131,6 @@ def synthesize_several(exemplars, options: SynthOptions, progress=None) -> Sever
     outside = mask_pyramid(~atlas.inside(), levels)
     shapes = level_shapes(out_shape, levels)
 
-    def jacobian_field(shape):
-        return np.broadcast_to(jac.astype(np.float32), (*shape, 2, 2)).copy()
-
     def bounds(level, shape, jac_field):
         return valid_box(shape, jac, opts.patch_radius)
 
@@ -146,10 +152,9 @@ def synthesize_several(exemplars, options: SynthOptions, progress=None) -> Sever
             pos = np.rint(pos)
         return snap(pos, allowed)
 
-    pos, jac_field, _ = run_levels(LevelLoop(pyramid, shapes, jacobian_field, bounds, start,
-                                             constraint=constraint), opts, progress)
+    loop = LevelLoop(pyramid, shapes, uniform_jacobian(jac), bounds, start,
+                     constraint=constraint)
+    pos, jac_field, _ = run_levels(loop, opts, progress)
     pixels = render(atlas.pixels, pos, jac_field, *render_settings(opts))
-    index = atlas.index(pos)
-    origins = np.array(atlas.origins, np.float32)
-    local = pos - origins[np.maximum(index, 0)]
-    return SeveralResult(pixels, pos, None, index, local.astype(np.float32))
+    index, local = atlas.locate(pos)
+    return SeveralResult(pixels, pos, None, index, local)

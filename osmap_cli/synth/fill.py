@@ -31,6 +31,7 @@ from osmap_cli.synth.pipeline import (
     LevelLoop,
     SynthResult,
     run_levels,
+    uniform_jacobian,
     valid_box,
 )
 from osmap_cli.synth.render import render
@@ -133,17 +134,11 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
 
         atlas = pack([source, *exemplars], levels, max(opts.patch_radius, opts.blend) + 1)
         pyramid = build_pyramid(atlas.pixels, levels)
-        sources = np.zeros(atlas.pixels.shape[:2], bool)
-        for (y, x), (h, w) in zip(atlas.origins[1:], atlas.shapes[1:]):
-            sources[y:y + h, x:x + w] = True
-        off_limits = mask_pyramid(~sources, levels)
+        off_limits = mask_pyramid(~atlas.inside(first=1), levels)
     else:
         pyramid = build_pyramid(source, levels)
         off_limits = holes
     rng = np.random.default_rng(opts.seed)
-
-    def jacobian_field(shape):
-        return np.broadcast_to(np.eye(2, dtype=np.float32), (*shape, 2, 2)).copy()
 
     def bounds(level, source_shape, jac_field):
         if source_free and level > 0:
@@ -181,8 +176,9 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
         # pre-fill, which blurs the features of the kept pixels around the hole
         return _paste(level_image, holes[level], render(pyramid[level], pos))
 
-    loop = LevelLoop(pyramid, [h.shape for h in holes], jacobian_field, bounds, start,
-                     constraint=constraint, rounds=1 if source_free else 2, restyle=restyle)
+    loop = LevelLoop(pyramid, [h.shape for h in holes], uniform_jacobian(np.eye(2)), bounds,
+                     start, constraint=constraint, rounds=1 if source_free else 2,
+                     restyle=restyle)
     pos, jac_field, finest = run_levels(loop, opts, progress)
     forbidden = finest.forbidden
     if not source_free and forbidden[np.rint(pos[free]).astype(int)[:, 0],
@@ -201,10 +197,8 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
         return render(sheet, pos, jac_field, wrap, blend)
 
     pixels = render_fill(draw, image, free, source_free, opts.blend)
-    index = atlas.index(pos) - 1  # -1: the image itself
-    origins = np.array(atlas.origins, np.float32)
-    local = (pos - origins[index + 1]).astype(np.float32)
-    return SeveralResult(pixels, pos, None, index, local)
+    index, local = atlas.locate(pos)
+    return SeveralResult(pixels, pos, None, index - 1, local)  # -1: the image itself
 
 
 def _check_exemplars(image: np.ndarray, exemplars, source_free: bool) -> None:

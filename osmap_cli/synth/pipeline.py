@@ -97,6 +97,13 @@ def run_levels(loop: LevelLoop, opts: SynthOptions, progress=None):
     return pos, jac_field, constraint
 
 
+def uniform_jacobian(jac: np.ndarray) -> Callable:
+    """A LevelLoop.jacobian_field: the same 2x2 Jacobian at every pixel of every level."""
+    def field(shape):
+        return np.broadcast_to(np.asarray(jac, np.float32), (*shape, 2, 2)).copy()
+    return field
+
+
 def valid_box(shape, jac: np.ndarray, radius: int):
     """Exemplar positions whose whole matching window stays inside the exemplar (lo, hi)."""
     reach = radius * np.abs(jac).sum(axis=1)
@@ -154,7 +161,7 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
 
     def jacobian_field(shape):
         if fields is None:
-            return np.broadcast_to(jac.astype(np.float32), (*shape, 2, 2)).copy()
+            return uniform_jacobian(jac)(shape)
         return fields.jacobian_field(shape, opts.orientation, opts.scale, opts.anisotropy)
 
     def bounds(level, shape, jac_field):
