@@ -94,7 +94,8 @@ osmap_cli.solid.render_volume(uv, maps) re-renders it on aligned maps.
 
 \b
 Presets (--preset): a built-in name ('osmap presets --solid' lists them;
-"structured", "smooth" and "legacy" select the legacy method), or a TOML
+"muted": fewer 1-voxel stripes, paler; "structured", "smooth" and
+"legacy" select the legacy method), or a TOML
 file with a [solid] table of tunables (osmap solid does not read the
 [synth] presets). Tuning flags (--method, --iterations, ...) override the
 preset; --quality fast|high scales the search on top.

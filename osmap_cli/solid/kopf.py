@@ -144,6 +144,7 @@ def optimise(images, ex_of_axis, opts: SolidOptions, shapes, pyramids, stack, or
     n_ex = len(images)
     sharpen = opts.sharpen if opts.method == "osmap" else 0
     hist = opts.histogram_weight if opts.method == "osmap" else opts.kopf_histogram
+    hist_pos = opts.position_weight if opts.method == "osmap" else opts.kopf_histogram
     total = float(levels * opts.kopf_iterations)
     done = 0.0
     pos = vol = source = prev_lo = prev_hi = None
@@ -204,8 +205,9 @@ def optimise(images, ex_of_axis, opts: SolidOptions, shapes, pyramids, stack, or
             pos = new_pos
             weights = np.ones(imgs.shape[:3], np.float32)
             if hist > 0:
-                weights = (colour_weights(vol, imgs, ex_of_axis, hist)
-                           * position_weights(pos, opts, ex_of_axis, n_ex, hw, hist))
+                weights = weights * colour_weights(vol, imgs, ex_of_axis, hist)
+            if hist_pos > 0:
+                weights = weights * position_weights(pos, opts, ex_of_axis, n_ex, hw, hist_pos)
             averaged = np.empty_like(vol)
             cw = ((dist.astype(np.float64) + eps) ** power).astype(np.float32)
             kopf_average(pos, cw, imgs, ex_of_axis, weights, avg_p, averaged, source)

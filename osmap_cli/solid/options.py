@@ -102,9 +102,13 @@ class SolidOptions(Options):
     kopf_histogram: float = option(1.0, 0.0, 10.0, "method kopf: strength of the colour and "
                                   "exemplar-position histogram weights (0: plain IRLS)",
                                   tunable=True)
-    histogram_weight: float = option(3.0, 0.0, 10.0, "method osmap: the same strength (stronger "
-                                    "than kopf's: the sharpening favours the majority colour)",
-                                    tunable=True)
+    histogram_weight: float = option(3.0, 0.0, 10.0, "method osmap: strength of the colour "
+                                    "histogram weight (stronger than kopf's: the sharpening "
+                                    "favours the majority colour)", tunable=True)
+    position_weight: float = option(9.0, 0.0, 30.0, "method osmap: strength of the "
+                                   "exemplar-position histogram weight (higher: more of the "
+                                   "exemplar used, truer colours and feature sizes, more 1-voxel "
+                                   "stripes)", tunable=True)
     sharpen: int = option(3, 0, 20, "method osmap: the last `sharpen` iterations of every level "
                          "give each voxel one exemplar colour (the best-agreeing window's)",
                          tunable=True)
@@ -130,7 +134,7 @@ class SolidOptions(Options):
     sharpen_steps: int = option(0, 0, 20, "with sharpen_bandwidth: mean-shift steps from the "
                                "weighted mean (Gaussian kernel) instead of the densest "
                                "proposal's cluster; 0: densest", tunable=True)
-    final_histogram: float = option(0.5, 0.0, 1.0, "method osmap: how far the final colours are "
+    final_histogram: float = option(0.75, 0.0, 1.0, "method osmap: how far the final colours are "
                                    "moved to the exemplar's per-channel distribution", tunable=True)
 
     @property
