@@ -23,7 +23,8 @@ from osmap_kernels.common import EIGHT_NEIGHBOURS, hash_uniform, neighbour, samp
 #   radius    int64    neighbourhood half-size (matching window (2r+1)^2 of feature vectors)
 #   lam       float64  occupancy penalty: cost * (1 + lam * occupancy)
 #   wrap      bool     output is toroidal (tileable)
-#   lo, hi    float64[2] valid exemplar positions (the whole matching window stays inside)
+#   lo, hi    (float, float) valid exemplar positions (the whole matching window stays inside);
+#             tuples, not arrays: an array field costs atomic reference counting per access
 #   n_random  int64    PatchMatch random-search candidates at halving radii
 #   seed      uint64   user seed
 #   salt      uint64   distinguishes level / sweep / colour
@@ -119,6 +120,32 @@ def _candidate_cost(feat, cy, cx, jac, radius, nb, nb_ok, occ, lam, best, buf):
     return total * factor
 
 
+@njit(cache=True, inline="always")
+def _integral_inside(cy, cx, lo, hi_y, hi_x):
+    """Whether (cy, cx) is an integer position whose rows cy - lo .. cy + lo and columns
+    cx - lo .. cx + lo all lie inside [0, hi_y] x [0, hi_x]."""
+    return (cy == np.floor(cy) and cx == np.floor(cx) and cy >= lo and cy <= hi_y - lo
+            and cx >= lo and cx <= hi_x - lo)
+
+
+@njit(cache=True, inline="always")
+def _gather(src, feat, y, x, p, nb, nb_ok, buf):
+    """The output neighbourhood's current appearance at pixel (y, x), for _total_cost: nb[n * F
+    + f] feature f of window element n (scan order) where nb_ok[n] (inside the output)."""
+    H, W = src.shape[0], src.shape[1]
+    nf = feat.shape[2]
+    n = 0
+    for dy in range(-p.radius, p.radius + 1):
+        for dx in range(-p.radius, p.radius + 1):
+            qy, qx, inside = neighbour(y, x, dy, dx, H, W, p.wrap)
+            nb_ok[n] = inside
+            if inside:
+                sample(feat, src[qy, qx, 0], src[qy, qx, 1], buf)
+                for f in range(nf):
+                    nb[n * nf + f] = buf[f]
+            n += 1
+
+
 def refine_pass(src, dst, feat, jac, knn, occ, area, gex, gout, p):
     """One red-black pass: for pixels of colour p.parity, write the best candidate into dst.
 
@@ -134,41 +161,81 @@ def refine_pass(src, dst, feat, jac, knn, occ, area, gex, gout, p):
 
 @njit(cache=True, nogil=True)
 def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, y0, y1):
-    """refine_pass on rows y0 <= y < y1 (reads src, writes only those rows of dst)."""
+    """refine_pass on rows y0 <= y < y1 (reads src, writes only those rows of dst).
+
+    Where the Jacobian is the identity and every position in a pixel's window is integral (the
+    default synth), a candidate with an integral position whose window lies inside the exemplar
+    is costed in place (below): the same float64 operations in the same order as _total_cost,
+    so the same cost bit for bit, from exact integer arithmetic. A window element whose
+    position implies the candidate itself holds exactly the candidate's exemplar pixel: its
+    term is +0.0, which leaves every partial sum as it is, so it is skipped (inside a copy the
+    current position costs nothing to check); the others read the exemplar at both positions
+    directly (no gathered neighbourhood, no bilinear sample). The code is written out here,
+    not called: each array handed to an inlined function costs atomic reference-count updates
+    per call, about half the time of a pass. Other pixels and candidates go to _total_cost."""
     H, W = src.shape[0], src.shape[1]
-    nf = feat.shape[2]
+    h, w, nf = feat.shape
     r = p.radius
     side = 2 * r + 1
     k = knn.shape[2]
-    hmax = max(feat.shape[0], feat.shape[1])
+    hmax = max(h, w)
     nb = np.empty(side * side * nf)
     nb_ok = np.zeros(side * side, np.bool_)
     buf = np.empty(nf)
     seen = np.empty((8, 2))
+    # window element -> the position it holds (win) and the one it implies for the pixel
+    # (implied: its position minus its offset; NaN outside the output); the 8 neighbours' areas
+    win = np.empty((side * side, 2), np.int64)
+    implied = np.empty((side * side, 2))
+    area8 = np.empty(8)
+    # the coherent and k-NN candidates of a pixel, in the order they are costed
+    listed = np.empty((8 * (1 + k), 2))
     for y in range(y0, y1):
         for x in range((y + p.parity) % 2, W, 2):
-            J = jac[y, x]
-            # gather the output neighbourhood's current appearance
+            # J's entries as scalars, not a view jac[y, x] (reference counts, see above)
+            j00 = jac[y, x, 0, 0]
+            j01 = jac[y, x, 0, 1]
+            j10 = jac[y, x, 1, 0]
+            j11 = jac[y, x, 1, 1]
+            fast = j00 == 1.0 and j01 == 0.0 and j10 == 0.0 and j11 == 1.0
             n = 0
             for dy in range(-r, r + 1):
                 for dx in range(-r, r + 1):
                     qy, qx, inside = neighbour(y, x, dy, dx, H, W, p.wrap)
                     nb_ok[n] = inside
                     if inside:
-                        sample(feat, src[qy, qx, 0], src[qy, qx, 1], buf)
-                        for f in range(nf):
-                            nb[n * nf + f] = buf[f]
+                        sy = src[qy, qx, 0]
+                        sx = src[qy, qx, 1]
+                        if (sy == np.floor(sy) and sx == np.floor(sx) and sy >= 0
+                                and sy <= h - 1 and sx >= 0 and sx <= w - 1):
+                            win[n, 0] = int(sy)
+                            win[n, 1] = int(sx)
+                            implied[n, 0] = sy - dy
+                            implied[n, 1] = sx - dx
+                        else:
+                            fast = False
+                    else:
+                        implied[n, 0] = np.nan
+                        implied[n, 1] = np.nan
                     n += 1
+            if fast:
+                for j in range(8):
+                    qy, qx, inside = neighbour(y, x, EIGHT_NEIGHBOURS[j, 0],
+                                               EIGHT_NEIGHBOURS[j, 1], H, W, p.wrap)
+                    if inside:
+                        area8[j] = area[qy, qx]
+            else:
+                _gather(src, feat, y, x, p, nb, nb_ok, buf)
+            gathered = not fast
 
             by = src[y, x, 0]
             bx = src[y, x, 1]
-            best = _total_cost(src, area, y, x, feat, by, bx, J, nb, nb_ok, occ, p, np.inf, buf,
-                               gex, gout)
             y0 = by
             x0 = bx
+            # coherent candidates from the 8 neighbours, each followed by its k most similar
+            # positions
+            n_listed = 0
             n_seen = 0
-            index = y * W + x
-            # coherent candidates from the 8 neighbours, and their k most similar positions
             for dy in range(-1, 2):
                 for dx in range(-1, 2):
                     if dy == 0 and dx == 0:
@@ -176,8 +243,8 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, y0, y1):
                     qy, qx, inside = neighbour(y, x, dy, dx, H, W, p.wrap)
                     if not inside:
                         continue
-                    cy = src[qy, qx, 0] - (J[0, 0] * dy + J[0, 1] * dx)
-                    cx = src[qy, qx, 1] - (J[1, 0] * dy + J[1, 1] * dx)
+                    cy = src[qy, qx, 0] - (j00 * dy + j01 * dx)
+                    cx = src[qy, qx, 1] - (j10 * dy + j11 * dx)
                     if cy < p.lo[0] or cy > p.hi[0] or cx < p.lo[1] or cx > p.hi[1]:
                         continue
                     # inside a copy the neighbours propose the same position: cost it (and its
@@ -192,38 +259,103 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, y0, y1):
                     seen[n_seen, 1] = cx
                     n_seen += 1
                     if cy != y0 or cx != x0:
-                        cost = _total_cost(src, area, y, x, feat, cy, cx, J, nb, nb_ok, occ, p,
-                                           best, buf, gex, gout)
-                        if cost < best:
-                            best, by, bx = cost, cy, cx
+                        listed[n_listed, 0] = cy
+                        listed[n_listed, 1] = cx
+                        n_listed += 1
                     iy = int(cy + 0.5)
                     ix = int(cx + 0.5)
                     fy = cy - iy
                     fx = cx - ix
                     for j in range(k):
-                        ky = _clamp(knn[iy, ix, j, 0] + fy, p.lo[0], p.hi[0])
-                        kx = _clamp(knn[iy, ix, j, 1] + fx, p.lo[1], p.hi[1])
-                        cost = _total_cost(src, area, y, x, feat, ky, kx, J, nb, nb_ok, occ, p,
-                                           best, buf, gex, gout)
-                        if cost < best:
-                            best, by, bx = cost, ky, kx
-            # PatchMatch random search around the best, at halving radii, plus one global draw
+                        listed[n_listed, 0] = _clamp(knn[iy, ix, j, 0] + fy, p.lo[0], p.hi[0])
+                        listed[n_listed, 1] = _clamp(knn[iy, ix, j, 1] + fx, p.lo[1], p.hi[1])
+                        n_listed += 1
+            # costed in turn: the current position, the listed ones, then the PatchMatch random
+            # search around the best so far, at halving radii, plus one global draw
+            index = y * W + x
             radius = hmax * 0.5
-            for j in range(p.n_random + 1):
-                u = hash_uniform(p.seed, p.salt, index, 2 * j)
-                v = hash_uniform(p.seed, p.salt, index, 2 * j + 1)
-                if j == p.n_random:
-                    cy = p.lo[0] + u * (p.hi[0] - p.lo[0])
-                    cx = p.lo[1] + v * (p.hi[1] - p.lo[1])
+            best = np.inf
+            for c in range(1 + n_listed + p.n_random + 1):
+                if c == 0:
+                    cy = np.float64(by)
+                    cx = np.float64(bx)
+                elif c <= n_listed:
+                    cy = listed[c - 1, 0]
+                    cx = listed[c - 1, 1]
                 else:
-                    cy = by + (2 * u - 1) * radius
-                    cx = bx + (2 * v - 1) * radius
-                    radius *= 0.5
-                cy = _clamp(np.floor(cy) + (by - np.floor(by)), p.lo[0], p.hi[0])
-                cx = _clamp(np.floor(cx) + (bx - np.floor(bx)), p.lo[1], p.hi[1])
-                cost = _total_cost(src, area, y, x, feat, cy, cx, J, nb, nb_ok, occ, p, best, buf,
-                                   gex, gout)
-                if cost < best:
+                    j = c - 1 - n_listed
+                    u = hash_uniform(p.seed, p.salt, index, 2 * j)
+                    v = hash_uniform(p.seed, p.salt, index, 2 * j + 1)
+                    if j == p.n_random:
+                        cy = p.lo[0] + u * (p.hi[0] - p.lo[0])
+                        cx = p.lo[1] + v * (p.hi[1] - p.lo[1])
+                    else:
+                        cy = by + (2 * u - 1) * radius
+                        cx = bx + (2 * v - 1) * radius
+                        radius *= 0.5
+                    cy = _clamp(np.floor(cy) + (by - np.floor(by)), p.lo[0], p.hi[0])
+                    cx = _clamp(np.floor(cx) + (bx - np.floor(bx)), p.lo[1], p.hi[1])
+                if fast and _integral_inside(cy, cx, r, h - 1, w - 1):
+                    # _total_cost in place (see the docstring): the seam penalty ...
+                    seam = 0.0
+                    if p.seam != 0.0:
+                        n_broken = 0
+                        excess = 0.0
+                        for j in range(8):
+                            e = (r + EIGHT_NEIGHBOURS[j, 0]) * side + r + EIGHT_NEIGHBOURS[j, 1]
+                            ey = implied[e, 0]
+                            if ey != ey:  # no neighbour there
+                                continue
+                            if ey != cy or implied[e, 1] != cx:
+                                n_broken += 1
+                            elif area8[j] > p.max_area:
+                                excess += area8[j] / p.max_area - 1.0
+                        seam = p.seam * (n_broken + excess)
+                    if p.guide != 0.0:  # _guide_penalty (0.0 unguided: seam + 0.0 is seam)
+                        gy = min(max(int(cy + 0.5), 0), gex.shape[0] - 1)
+                        gx = min(max(int(cx + 0.5), 0), gex.shape[1] - 1)
+                        d = gex[gy, gx] - gout[y, x]
+                        seam = seam + p.guide * d * d
+                    cost = np.inf
+                    if not seam >= best:  # (not <: a NaN best, from an infinite occupancy)
+                        # ... and _candidate_cost's occupancy-weighted SSD
+                        iy = int(cy)
+                        ix = int(cx)
+                        factor = 1.0 + p.lam * occ[iy, ix]
+                        limit = (best - seam) / factor
+                        total = 0.0
+                        n = 0
+                        for dy in range(-r, r + 1):
+                            for dx in range(-r, r + 1):
+                                ey = implied[n, 0]
+                                if ey == ey and (ey != cy or implied[n, 1] != cx):
+                                    sy = win[n, 0]
+                                    sx = win[n, 1]
+                                    for f in range(nf):
+                                        diff = (np.float64(feat[sy, sx, f])
+                                                - np.float64(feat[iy + dy, ix + dx, f]))
+                                        total += diff * diff
+                                    if total >= limit:
+                                        break
+                                n += 1
+                            if total >= limit:
+                                break
+                        if not total >= limit:  # as _candidate_cost, NaN limit included
+                            cost = seam + total * factor
+                elif c == 0:
+                    if not gathered:
+                        _gather(src, feat, y, x, p, nb, nb_ok, buf)
+                        gathered = True
+                    # the current position as stored (float32 arithmetic in the seam test)
+                    cost = _total_cost(src, area, y, x, feat, src[y, x, 0], src[y, x, 1],
+                                       jac[y, x], nb, nb_ok, occ, p, best, buf, gex, gout)
+                else:
+                    if not gathered:
+                        _gather(src, feat, y, x, p, nb, nb_ok, buf)
+                        gathered = True
+                    cost = _total_cost(src, area, y, x, feat, cy, cx, jac[y, x], nb, nb_ok, occ,
+                                       p, best, buf, gex, gout)
+                if c == 0 or cost < best:
                     best, by, bx = cost, cy, cx
             dst[y, x, 0] = by
             dst[y, x, 1] = bx

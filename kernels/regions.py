@@ -52,9 +52,9 @@ def _stable_order(keys, n_keys):
 
 
 @njit(cache=True)
-def _label_counts(labels):
-    """Pixels per label (labels int64[H, W] in [0, H*W)): float64[H*W]."""
-    counts = np.zeros(labels.shape[0] * labels.shape[1])
+def _label_counts(labels, count):
+    """Pixels per label (labels int64[H, W] in [0, count)): float64[count]."""
+    counts = np.zeros(count)
     for y in range(labels.shape[0]):
         for x in range(labels.shape[1]):
             counts[labels[y, x]] += 1.0
@@ -62,8 +62,9 @@ def _label_counts(labels):
 
 
 @njit(cache=True, inline="always")
-def copy_region_labels(pos, jac, wrap):
-    """Label of every pixel's copy region: the scan index of its first pixel. int64[H, W]."""
+def _copy_region_forest(pos, jac, wrap):
+    """Union-find forest (int64[H*W]) of the copy regions: every root is its region's first
+    pixel in scan order."""
     H, W = pos.shape[0], pos.shape[1]
     parent = np.arange(H * W)
     for y in range(H):
@@ -86,6 +87,14 @@ def copy_region_labels(pos, jac, wrap):
                     b = _find(parent, qy * W + qx)
                     if a != b:
                         parent[max(a, b)] = min(a, b)
+    return parent
+
+
+@njit(cache=True, inline="always")
+def copy_region_labels(pos, jac, wrap):
+    """Label of every pixel's copy region: the scan index of its first pixel. int64[H, W]."""
+    H, W = pos.shape[0], pos.shape[1]
+    parent = _copy_region_forest(pos, jac, wrap)
     labels = np.empty((H, W), np.int64)
     for y in range(H):
         for x in range(W):
@@ -93,12 +102,32 @@ def copy_region_labels(pos, jac, wrap):
     return labels
 
 
+@njit(cache=True, inline="always")
+def copy_region_ids(pos, jac, wrap):
+    """(ids int64[H, W], count): the copy regions numbered 0 .. count - 1 in the scan order of
+    their first pixels. The same order as copy_region_labels', so label-ordered work gives the
+    same result; per-region arrays then hold count entries, not H*W."""
+    H, W = pos.shape[0], pos.shape[1]
+    parent = _copy_region_forest(pos, jac, wrap)
+    ids = np.empty((H, W), np.int64)
+    flat = ids.ravel()
+    count = 0
+    for i in range(H * W):
+        root = _find(parent, i)
+        if root == i:  # a region's first pixel
+            flat[i] = count
+            count += 1
+        else:
+            flat[i] = flat[root]
+    return ids, count
+
+
 @njit(cache=True)
 def copy_region_areas(pos, jac, wrap):
     """Area of the verbatim-copy region around every pixel (see copy_region_labels).
     float32[H, W]."""
-    labels = copy_region_labels(pos, jac, wrap)
-    counts = _label_counts(labels)
+    labels, count = copy_region_ids(pos, jac, wrap)
+    counts = _label_counts(labels, count)
     out = np.empty(labels.shape, np.float32)
     for y in range(labels.shape[0]):
         for x in range(labels.shape[1]):
@@ -107,10 +136,10 @@ def copy_region_areas(pos, jac, wrap):
 
 
 @njit(cache=True, inline="always")
-def _border_pixels(labels, radius, wrap):
-    """(region, pixel) pairs, sorted by region: pixel b is on region R's border when b's
-    matching window holds pixels of R and of another region, i.e. when shifting R changes b's
-    cost."""
+def _border_pixels(labels, count, radius, wrap):
+    """(region, pixel) pairs, sorted by region (labels in [0, count)): pixel b is on region R's
+    border when b's matching window holds pixels of R and of another region, i.e. when shifting
+    R changes b's cost."""
     H, W = labels.shape
     side = 2 * radius + 1
     out_region = np.empty(H * W * 4, np.int64)
@@ -142,7 +171,7 @@ def _border_pixels(labels, radius, wrap):
                 out_region[n] = found[j]
                 out_pixel[n] = y * W + x
                 n += 1
-    order, _ = _stable_order(out_region[:n], H * W)
+    order, _ = _stable_order(out_region[:n], count)
     regions = np.empty(n, np.int64)
     pixels = np.empty(n, np.int64)
     for j in range(n):
@@ -279,12 +308,12 @@ def _best_shift(feat, fixed, base, target, merges, shifts, lo_pos, hi_pos, p):
 
 
 @njit(cache=True, inline="always")
-def _region_extents(pos, labels):
-    """Per label, the smallest and largest exemplar position of its pixels: [H*W, 2] x 2, in
-    pos's dtype (float32 in synth: exact, and half the memory of float64 at large sizes)."""
+def _region_extents(pos, labels, count):
+    """Per label (in [0, count)), the smallest and largest exemplar position of its pixels:
+    [count, 2] x 2, in pos's dtype (float32 in synth: exact)."""
     H, W = labels.shape
-    lo_pos = np.full((H * W, 2), np.inf, pos.dtype)
-    hi_pos = np.full((H * W, 2), -np.inf, pos.dtype)
+    lo_pos = np.full((count, 2), np.inf, pos.dtype)
+    hi_pos = np.full((count, 2), -np.inf, pos.dtype)
     for y in range(H):
         for x in range(W):
             label = labels[y, x]
@@ -324,16 +353,17 @@ def align_regions(pos, feat, jac, p):
     2, 2] output-to-exemplar Jacobian. Returns the new positions; pos is not modified.
     """
     pos = pos.copy()
-    H, W = pos.shape[0], pos.shape[1]
-    labels = copy_region_labels(pos, jac, p.wrap)
-    regions, pixels = _border_pixels(labels, p.radius, p.wrap)
+    W = pos.shape[1]
+    # regions numbered in label order: the same order, per-region arrays of `count` entries
+    labels, count = copy_region_ids(pos, jac, p.wrap)
+    regions, pixels = _border_pixels(labels, count, p.radius, p.wrap)
     if regions.shape[0] == 0:
         return pos
     starts, longest = _region_starts(regions)
-    lo_pos, hi_pos = _region_extents(pos, labels)
-    area = _label_counts(labels)
-    group = np.arange(H * W)  # copies merged by this pass's shifts (union-find over labels)
-    members, member_starts = _stable_order(labels.ravel(), H * W)  # pixels by label
+    lo_pos, hi_pos = _region_extents(pos, labels, count)
+    area = _label_counts(labels, count)
+    group = np.arange(count)  # copies merged by this pass's shifts (union-find over regions)
+    members, member_starts = _stable_order(labels.ravel(), count)  # pixels by region
     shifts = _shifts_by_length(p.reach)
     terms = _scratch(longest, p.radius, feat.shape[2])
     for i in range(starts.shape[0] - 1):

@@ -66,8 +66,7 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
         for parity in (0, 1):
             params = RefineParams(
                 radius=opts.patch_radius, lam=lam, wrap=wrap,
-                lo=np.asarray(lo, np.float64), hi=np.asarray(hi, np.float64),
-                n_random=opts.random_candidates, seed=np.uint64(seed),
+                lo=_pair(lo), hi=_pair(hi), n_random=opts.random_candidates, seed=np.uint64(seed),
                 salt=np.uint64(salt * 1000 + sweep * 2 + parity), parity=parity,
                 seam=seam, max_area=float(max_area), guide=guide)
             if math.isfinite(max_area):
@@ -87,6 +86,12 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
         if progress is not None:
             progress(1)
     return pos
+
+
+def _pair(values) -> tuple[float, float]:
+    """A (row, col) bound as a tuple of two floats for a kernel's parameter record: read there
+    without the atomic reference counting that an array field costs on every access."""
+    return float(values[0]), float(values[1])
 
 
 def align_reach(align: int, level_scale: int, coarsest_scale: int) -> int:
