@@ -78,9 +78,13 @@ def _guide_penalty(gex, gout, y, x, cy, cx, p):
     return p.guide * d * d
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _total_cost(src, area, y, x, feat, cy, cx, J, nb, nb_ok, occ, p, best, buf, gex, gout):
-    """Matching cost of candidate (cy, cx) for pixel (y, x) plus its seam and guide penalties."""
+    """Matching cost of candidate (cy, cx) for pixel (y, x) plus its seam and guide penalties.
+
+    Called, not inlined (nor is _gather): an inlined copy is compiled again at each of
+    _refine_rows' call sites, and a first run compiles about a second less this way; only the
+    general path (rotated, scaled or field-driven synthesis) calls it, about 5 % slower."""
     seam = _seam_penalty(src, area, y, x, cy, cx, J, p) + _guide_penalty(gex, gout, y, x, cy,
                                                                           cx, p)
     if seam >= best:
@@ -128,7 +132,7 @@ def _integral_inside(cy, cx, lo, hi_y, hi_x):
             and cx >= lo and cx <= hi_x - lo)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _gather(src, feat, y, x, p, nb, nb_ok, buf):
     """The output neighbourhood's current appearance at pixel (y, x), for _total_cost: nb[n * F
     + f] feature f of window element n (scan order) where nb_ok[n] (inside the output)."""
