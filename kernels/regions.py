@@ -110,15 +110,14 @@ def copy_region_ids(pos, jac, wrap):
     H, W = pos.shape[0], pos.shape[1]
     parent = _copy_region_forest(pos, jac, wrap)
     ids = np.empty((H, W), np.int64)
-    flat = ids.ravel()
     count = 0
     for i in range(H * W):
         root = _find(parent, i)
         if root == i:  # a region's first pixel
-            flat[i] = count
+            ids[i // W, i % W] = count
             count += 1
         else:
-            flat[i] = flat[root]
+            ids[i // W, i % W] = ids[root // W, root % W]
     return ids, count
 
 
