@@ -22,7 +22,8 @@ import time
 # refine with the kernels it shares with organise cached, as in a first run): the
 # announcement's estimate.
 # The refine group grew from 11.5 s with the written-out candidate costs of _refine_rows (issue
-# 14's large-output work: 13.3 -> 15.0 CPU s for the group on a busy machine, the same ratio).
+# 14's large-output work) and came back to 13.2 s at load 0.9 once _total_cost and _gather were
+# called rather than inlined (BENCHMARKS.md, "Compile").
 GROUP_SECONDS = {"organise": 11.0, "refine": 13.0}
 ANNOUNCEMENT = "osmap: compiling kernels, first run only (about {seconds} s)"
 
