@@ -19,11 +19,12 @@ BASE_BYTES = 200 * 2**20  # interpreter, NumPy, Numba and compiled kernels
 
 
 def texture_bytes(width: int, height: int, channels: int, extra_channels: int = 0) -> int:
-    """Peak working set of `osmap synth` for a WxH output (BENCHMARKS.md "Memory" and "Large
-    outputs": about 114 bytes per pixel above the libraries at 1024 px and 109 at 4096 px, 3
-    channels; this estimate: 124, about 10 % above): positions, the Jacobian field, copy-region
-    labels and extents per pixel, the output and its converted copy per channel, and
-    EXTRA_CHANNELS of --with maps and --uv-out rendered beside it."""
+    """Peak working set of `osmap synth` for a WxH output: positions, the Jacobian field,
+    copy-region labels per pixel, the output and its converted copy per channel, and
+    EXTRA_CHANNELS of --with maps and --uv-out rendered beside it. Kept on the safe side (124
+    bytes per pixel with 3 channels): measured since issue 14's large-output work, about 37
+    bytes per pixel above the libraries at 1024 px and 63 at 4096 px (BENCHMARKS.md "Memory"
+    and "Large outputs"), so at 4096 px the estimate is about 1.7x the peak."""
     pixels = int(width) * int(height)
     return BASE_BYTES + pixels * (88 + 12 * int(channels) + 12 * int(extra_channels))
 
