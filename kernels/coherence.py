@@ -346,16 +346,19 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, y0, y1):
                                 break
                         if not total >= limit:  # as _candidate_cost, NaN limit included
                             cost = seam + total * factor
+                elif c == 0:
+                    if not gathered:
+                        _gather(src, feat, y, x, p, nb, nb_ok, buf)
+                        gathered = True
+                    # the current position as stored (float32 arithmetic in the seam test)
+                    cost = _total_cost(src, area, y, x, feat, src[y, x, 0], src[y, x, 1],
+                                       jac[y, x], nb, nb_ok, occ, p, best, buf, gex, gout)
                 else:
                     if not gathered:
                         _gather(src, feat, y, x, p, nb, nb_ok, buf)
                         gathered = True
-                    if c == 0:  # the current position as stored (float32 in the seam test)
-                        cost = _total_cost(src, area, y, x, feat, src[y, x, 0], src[y, x, 1],
-                                           jac[y, x], nb, nb_ok, occ, p, best, buf, gex, gout)
-                    else:
-                        cost = _total_cost(src, area, y, x, feat, cy, cx, jac[y, x], nb, nb_ok,
-                                           occ, p, best, buf, gex, gout)
+                    cost = _total_cost(src, area, y, x, feat, cy, cx, jac[y, x], nb, nb_ok, occ,
+                                       p, best, buf, gex, gout)
                 if c == 0 or cost < best:
                     best, by, bx = cost, cy, cx
             dst[y, x, 0] = by
