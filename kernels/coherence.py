@@ -346,7 +346,7 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, y0, y1):
                                 break
                         if not total >= limit:  # as _candidate_cost, NaN limit included
                             cost = seam + total * factor
-                elif c == 0:
+                elif c == 0:  # two call sites on purpose: one shared branch compiles longer
                     if not gathered:
                         _gather(src, feat, y, x, p, nb, nb_ok, buf)
                         gathered = True
