@@ -380,34 +380,46 @@ def _knn_rows(feat, lo0, hi0, lo1, hi1, k, stride, exclude, out, y0, y1):
     h, w, nf = feat.shape
     ref_y = np.arange(lo0, hi0 + 1, stride)
     ref_x = np.arange(lo1, hi1 + 1, stride)
+    nx = ref_x.size
+    count = ref_y.size * nx
+    # the references' features feature-major, so that one pixel's distances to all of them
+    # are computed by a loop over references that vectorises
+    refs = np.empty((nf, count), np.float32)
+    for i in range(count):
+        for f in range(nf):
+            refs[f, i] = feat[ref_y[i // nx], ref_x[i % nx], f]
+    dist = np.empty(count)
     best_d = np.empty(k)
     best_i = np.empty((k, 2), np.int64)
     for y in range(y0, y1):
         for x in range(w):
+            dist[:] = 0.0
+            for f in range(nf):  # features in order: the same sums as one pixel at a time
+                a = feat[y, x, f]
+                row = refs[f]
+                for i in range(count):
+                    diff = a - row[i]
+                    dist[i] += diff * diff
             for j in range(k):
                 best_d[j] = np.inf
                 best_i[j, 0] = min(max(y, lo0), hi0)
                 best_i[j, 1] = min(max(x, lo1), hi1)
-            for ry in ref_y:
-                for rx in ref_x:
+            for i in range(count):  # in scan order, so ties keep the earlier reference
+                d = dist[i]
+                if d < best_d[k - 1]:
+                    ry = ref_y[i // nx]
+                    rx = ref_x[i % nx]
                     if abs(ry - y) <= exclude and abs(rx - x) <= exclude:
                         continue
-                    dist = 0.0
-                    for f in range(nf):
-                        diff = feat[y, x, f] - feat[ry, rx, f]
-                        dist += diff * diff
-                        if dist >= best_d[k - 1]:
-                            break
-                    if dist < best_d[k - 1]:
-                        j = k - 1
-                        while j > 0 and best_d[j - 1] > dist:
-                            best_d[j] = best_d[j - 1]
-                            best_i[j, 0] = best_i[j - 1, 0]  # not best_i[j] = best_i[j - 1]:
-                            best_i[j, 1] = best_i[j - 1, 1]  # see som._update_box
-                            j -= 1
-                        best_d[j] = dist
-                        best_i[j, 0] = ry
-                        best_i[j, 1] = rx
+                    j = k - 1
+                    while j > 0 and best_d[j - 1] > d:
+                        best_d[j] = best_d[j - 1]
+                        best_i[j, 0] = best_i[j - 1, 0]  # not best_i[j] = best_i[j - 1]:
+                        best_i[j, 1] = best_i[j - 1, 1]  # see som._update_box
+                        j -= 1
+                    best_d[j] = d
+                    best_i[j, 0] = ry
+                    best_i[j, 1] = rx
             for j in range(k):
                 out[y, x, j, 0] = best_i[j, 0]
                 out[y, x, j, 1] = best_i[j, 1]
