@@ -138,6 +138,27 @@ def test_tileable_bands_wrap_without_seam(samples):
     assert band < 1.3 * whole, (band, whole)
 
 
+def test_tileable_occupancy_counts_the_bands_only(samples):
+    from osmap_cli.imageio import read_image
+    from osmap_cli.synth import SynthOptions
+    from osmap_cli.synth.constraints import LevelConstraint, identity_positions
+    from osmap_cli.synth.fill import border_bands, make_tileable
+
+    free = border_bands((32, 32), 4)
+    pos = identity_positions((32, 32))
+    none = np.zeros((32, 32), bool)
+    used, samples_ = LevelConstraint(~free, pos, none, count_pinned=False).counted(pos, 1024)
+    assert used.shape == (1, int(free.sum()), 2) and samples_ == 1024
+    assert np.array_equal(used[0], pos[free])
+    used, samples_ = LevelConstraint(~free, pos, none).counted(pos, 1024)
+    assert used is pos and samples_ == 32 * 32
+    # the option acts on tileable: without the penalty the bands repeat more of the centre
+    image = read_image(samples / "wood_side.png").pixels
+    a = make_tileable(image, 16, SynthOptions(seed=1))
+    b = make_tileable(image, 16, SynthOptions(seed=1, occupancy=0.0))
+    assert not np.array_equal(a.pixels, b.pixels)
+
+
 def test_fill_refuses_empty_and_full_masks(gravel):
     from osmap_cli.errors import OsmapError
     from osmap_cli.synth import SynthOptions

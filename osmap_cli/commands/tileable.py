@@ -21,8 +21,8 @@ continues into its left, its bottom into its top), while every pixel
 farther in is kept bit for bit. The result has IMAGE's size and tiles
 without seams. A wider border gives the synthesis more room to hide the
 transition; it must leave a centre (at most half the shorter side).
---occupancy is not used: the kept centre already uses every position of
-IMAGE once, and the bands may repeat it.
+--occupancy penalises the bands' repeated use of one part of IMAGE (the
+kept centre is not counted); --occupancy 0 lets them repeat it.
 
 """ + FILL_COMMON_HELP
 

@@ -28,6 +28,9 @@ class LevelConstraint:
     known: np.ndarray
     forbidden: np.ndarray
     usage_scale: float = 1.0  # occupancy times this (an atlas: the share that is exemplar)
+    # whether the pinned pixels count in the occupancy (their use of the exemplar); a tileable
+    # photo's centre uses every centre position once, which is no reason to avoid them
+    count_pinned: bool = True
 
     def pin(self, pos: np.ndarray) -> np.ndarray:
         """pos with the pinned pixels at their known positions (pos is modified)."""
@@ -44,6 +47,15 @@ class LevelConstraint:
         if lam == 0.0:
             occ, lam = np.zeros_like(occ), 1.0
         return np.where(self.forbidden, np.float32(np.inf), occ).astype(np.float32), lam
+
+    def counted(self, pos: np.ndarray, source_pixels: int):
+        """(positions, samples) for the occupancy: pos and its pixel count, or, when
+        count_pinned is False, (1, n, 2) of the free pixels only, with at least one sample per
+        source pixel (a position used once is then uniform use, not over-use)."""
+        if self.count_pinned:
+            return pos, pos.shape[0] * pos.shape[1]
+        free = np.ascontiguousarray(pos[~self.pinned][None])
+        return free, max(free.shape[1], source_pixels)
 
     def unlinked(self, pos: np.ndarray) -> np.ndarray:
         """pos with every pinned pixel moved far away and apart, for measuring the copy regions

@@ -171,7 +171,8 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
                 # a mask this large (exemplars this small) at a coarse level: the hole (the
                 # positions outside the exemplars) only
                 forbidden = off_limits[level].copy()
-        return LevelConstraint(~holes[level], identity_positions(holes[level].shape), forbidden)
+        return LevelConstraint(~holes[level], identity_positions(holes[level].shape), forbidden,
+                               count_pinned=not source_free)
 
     def start(level, lo, hi, constraint):
         hole = holes[level]
@@ -199,12 +200,7 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
     loop = LevelLoop(pyramid, [h.shape for h in holes], uniform_jacobian(np.eye(2)), bounds,
                      start, constraint=constraint, rounds=1 if source_free else 2,
                      restyle=restyle)
-    # tileable: no occupancy penalty. The pinned centre already uses every centre position of
-    # the photo once, so the penalty charged any band copy from the centre as over-use and left
-    # the bands only their own content, which continues each side up to the wrap line and
-    # clashes there (measured: band error 1.54x -> 1.17x synth --tileable, docs/fill.md)
-    pos, jac_field, finest = run_levels(loop, opts.replace(occupancy=0.0) if source_free
-                                        else opts, progress)
+    pos, jac_field, finest = run_levels(loop, opts, progress)
     forbidden = finest.forbidden
     if not source_free and forbidden[np.rint(pos[free]).astype(int)[:, 0],
                                       np.rint(pos[free]).astype(int)[:, 1]].any():

@@ -59,7 +59,9 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
     max_area = (opts.max_copy / level_scale) ** 2 if opts.max_copy > 0 else np.inf
     area = np.zeros(pos.shape[:2], np.float32)
     for sweep in range(sweeps):
-        occ = occupancy(usage_counts(pos, *feat.shape[:2]), pos.shape[0] * pos.shape[1])
+        used, samples = ((pos, pos.shape[0] * pos.shape[1]) if constraint is None else
+                         constraint.counted(pos, feat.shape[0] * feat.shape[1]))
+        occ = occupancy(usage_counts(used, *feat.shape[:2]), samples)
         lam = float(opts.occupancy)
         if constraint is not None:
             occ, lam = constraint.penalise(occ, lam)
