@@ -5,7 +5,11 @@ README there); the section is skipped with a note when it is absent. For every s
 and output size, `osmap synth` (warm Numba cache) and the peer run in turn, A B A B ..., each a
 fresh process timed from outside (start-up included); the ratio osmap / peer is taken pair by
 pair, so a drift of the shared machine's speed cancels. Reported: each case's median pair
-ratio, and their geometric mean per size.
+ratio, and their geometric mean per size. Two more rows at 256x256: the Numba floor
+(bench/numba_floor.py: Python, numpy and Numba imported, one cached kernel loaded and called,
+nothing else) against the peer on the same samples, the start-up cost no change inside osmap
+can remove; and a batch, one `osmap synth` call over all the samples (--out-dir) against the
+peer run once per sample in turn, as a folder pipeline would.
 
     python bench/bench_peer.py [--quick] [--runs N]
 """
@@ -15,6 +19,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import shlex
 import shutil
 import statistics
 import sys
@@ -29,11 +34,28 @@ PEER = SHARED_DIR / "peers" / "resynth" / "resynth_cli"
 CASES = ((256, ("cells", "brick", "weave", "grass", "gravel", "wood_top")),
          (512, ("grass_256", "brick_256", "gravel_256")))
 QUICK_CASES = ((256, ("cells", "brick")), (512, ("grass_256",)))
+FLOOR = Path(__file__).resolve().parent / "numba_floor.py"
 COMMAND = ".venv/bin/python bench/run.py --only peer"
 
 
 def _geomean(values):
     return math.exp(sum(math.log(v) for v in values) / len(values)) if values else float("nan")
+
+
+def _paired(ours, peer, runs, env):
+    """One untimed run of each, then `runs` pairs in turn: (median wall ours, median wall peer,
+    median pair ratio of wall, of CPU)."""
+    timed_run(ours, env=env)  # warm the kernel cache and the file cache
+    timed_run(peer, env=env)
+    walls, ratios, cpu_ratios = [], [], []
+    for _ in range(runs):
+        a_wall, a_cpu = timed_run(ours, env=env)
+        b_wall, b_cpu = timed_run(peer, env=env)
+        walls.append((a_wall, b_wall))
+        ratios.append(a_wall / b_wall)
+        cpu_ratios.append(a_cpu / b_cpu)
+    return (statistics.median(w for w, _ in walls), statistics.median(w for _, w in walls),
+            statistics.median(ratios), statistics.median(cpu_ratios))
 
 
 def run(quick: bool = False, runs: int | None = None, log=print) -> str:
@@ -50,7 +72,7 @@ def run(quick: bool = False, runs: int | None = None, log=print) -> str:
     cases = QUICK_CASES if quick else CASES
     work = Path(tempfile.mkdtemp(prefix="osmap-peer-", dir=common.tmp_root()))
     env = dict(os.environ)
-    rows, by_size = [], {}
+    rows, by_size, floors = [], {}, []
     try:
         for size, names in cases:
             for name in names:
@@ -58,28 +80,32 @@ def run(quick: bool = False, runs: int | None = None, log=print) -> str:
                 ours = [str(osmap), "synth", str(sample), "-o", str(work / "osmap.png"),
                         "--size", str(size), "--seed", "1", "--quiet"]
                 peer = [str(PEER), str(sample), str(work / "peer.png"), str(size), str(size)]
-                timed_run(ours, env=env)  # warm the kernel cache and the file cache
-                timed_run(peer, env=env)
-                walls, cpus, ratios, cpu_ratios = [], [], [], []
-                for _ in range(runs):
-                    a_wall, a_cpu = timed_run(ours, env=env)
-                    b_wall, b_cpu = timed_run(peer, env=env)
-                    walls.append((a_wall, b_wall))
-                    cpus.append((a_cpu, b_cpu))
-                    ratios.append(a_wall / b_wall)
-                    cpu_ratios.append(a_cpu / b_cpu)
-                ratio, cpu_ratio = statistics.median(ratios), statistics.median(cpu_ratios)
+                ours_s, peer_s, ratio, cpu_ratio = _paired(ours, peer, runs, env)
                 by_size.setdefault(size, []).append((ratio, cpu_ratio))
                 log(f"[peer] {name} -> {size}: osmap/peer wall {ratio:.2f}, cpu {cpu_ratio:.2f}")
-                rows.append([f"{name} -> {size}x{size}",
-                             fmt(statistics.median(w for w, _ in walls)),
-                             fmt(statistics.median(w for _, w in walls)),
-                             fmt(ratio), fmt(cpu_ratio)])
+                rows.append([f"{name} -> {size}x{size}", fmt(ours_s), fmt(peer_s), fmt(ratio),
+                             fmt(cpu_ratio)])
+                if size == 256:
+                    floor = _paired([sys.executable, str(FLOOR)], peer, runs, env)
+                    floors.append(floor[2])
+                    log(f"[peer] numba floor / peer, {name} -> {size}: {floor[2]:.2f}")
+        names = cases[0][1]
+        batch = [str(osmap), "synth", *(str(SAMPLES_DIR / f"{n}.png") for n in names),
+                 "--out-dir", str(work / "batch"), "--overwrite", "--size", "256", "--seed", "1",
+                 "--quiet"]
+        peers = " && ".join(f"{shlex.quote(str(PEER))} {shlex.quote(str(SAMPLES_DIR / n))}.png "
+                            f"{shlex.quote(str(work / 'peer.png'))} 256 256" for n in names)
+        batch_ratio = _paired(batch, ["sh", "-c", peers], runs, env)
+        log(f"[peer] batch of {len(names)} at 256: osmap/peer wall {batch_ratio[2]:.2f}")
     finally:
         shutil.rmtree(work, ignore_errors=True)
     summary = [[f"{size}x{size} ({len(v)} samples, geometric mean)",
                 fmt(_geomean([r for r, _ in v])), fmt(_geomean([c for _, c in v]))]
                for size, v in by_size.items()]
+    summary.append([f"Numba floor, 256x256 ({len(floors)} samples, geometric mean)",
+                    fmt(_geomean(floors)), "-"])
+    summary.append([f"batch: one call, {len(names)} samples at 256x256 / the peer once each",
+                    fmt(batch_ratio[2]), fmt(batch_ratio[3])])
     return "\n".join([
         title, "",
         f"_{common.stamp()}; reproduce with `{COMMAND}{' --quick' if quick else ''}`; load "
@@ -90,7 +116,12 @@ def run(quick: bool = False, runs: int | None = None, log=print) -> str:
         "Resynthesizer engine (`resynth_cli EXEMPLAR OUT N N`, its defaults; outside the "
         "repository, used only to measure) on the shipped samples, each a fresh process timed "
         f"from outside, run in turn {runs} times after one untimed run each; ratios are "
-        "osmap / peer, pair by pair, medians (below 1: osmap is faster).", "",
+        "osmap / peer, pair by pair, medians (below 1: osmap is faster). *Numba floor*: "
+        "`bench/numba_floor.py` (a process that imports numpy and Numba and calls one cached "
+        "kernel, nothing else) / the peer's whole 256x256 run, the same samples: the start-up "
+        "any Numba program pays, which no change inside osmap removes. *Batch*: one `osmap "
+        "synth` over all the 256x256 samples (`--out-dir`) / the peer run once per sample.",
+        "",
         md_table(["size", "osmap / peer wall", "osmap / peer CPU"], summary),
         md_table(["case", "osmap wall s", "peer wall s", "wall ratio", "CPU ratio"], rows),
     ])
