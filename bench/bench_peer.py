@@ -83,12 +83,14 @@ def run(quick: bool = False, runs: int | None = None, log=print) -> str:
                 ours_s, peer_s, ratio, cpu_ratio = _paired(ours, peer, runs, env)
                 by_size.setdefault(size, []).append((ratio, cpu_ratio))
                 log(f"[peer] {name} -> {size}: osmap/peer wall {ratio:.2f}, cpu {cpu_ratio:.2f}")
-                rows.append([f"{name} -> {size}x{size}", fmt(ours_s), fmt(peer_s), fmt(ratio),
-                             fmt(cpu_ratio)])
+                floor_ratio = "-"
                 if size == 256:
                     floor = _paired([sys.executable, str(FLOOR)], peer, runs, env)
                     floors.append(floor[2])
+                    floor_ratio = fmt(floor[2])
                     log(f"[peer] numba floor / peer, {name} -> {size}: {floor[2]:.2f}")
+                rows.append([f"{name} -> {size}x{size}", fmt(ours_s), fmt(peer_s), fmt(ratio),
+                             fmt(cpu_ratio), floor_ratio])
         names = cases[0][1]
         batch = [str(osmap), "synth", *(str(SAMPLES_DIR / f"{n}.png") for n in names),
                  "--out-dir", str(work / "batch"), "--overwrite", "--size", "256", "--seed", "1",
@@ -123,7 +125,8 @@ def run(quick: bool = False, runs: int | None = None, log=print) -> str:
         "synth` over all the 256x256 samples (`--out-dir`) / the peer run once per sample.",
         "",
         md_table(["size", "osmap / peer wall", "osmap / peer CPU"], summary),
-        md_table(["case", "osmap wall s", "peer wall s", "wall ratio", "CPU ratio"], rows),
+        md_table(["case", "osmap wall s", "peer wall s", "wall ratio", "CPU ratio",
+                  "Numba floor / peer wall"], rows),
     ])
 
 
