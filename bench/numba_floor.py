@@ -1,18 +1,19 @@
 """The least any Numba program pays at start: Python, numpy and Numba imported, one cached
-kernel (parallel, like osmap's) loaded and called once. bench_peer.py runs it against the peer
-to show the part of osmap's wall time that no change inside osmap can remove.
+kernel loaded and called once (a plain `@njit(nogil=True)` kernel, the kind `osmap synth` runs).
+bench_peer.py runs it against the peer to show the part of osmap's wall time that no change
+inside osmap can remove.
 
     python bench/numba_floor.py
 """
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True)
 def add_one(values):
     out = np.empty_like(values)
-    for i in prange(values.shape[0]):
+    for i in range(values.shape[0]):
         out[i] = values[i] + 1.0
     return out
 
