@@ -59,9 +59,7 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
     max_area = (opts.max_copy / level_scale) ** 2 if opts.max_copy > 0 else np.inf
     area = np.zeros(pos.shape[:2], np.float32)
     for sweep in range(sweeps):
-        used, samples = ((pos, pos.shape[0] * pos.shape[1]) if constraint is None else
-                         constraint.counted(pos, feat.shape[0] * feat.shape[1]))
-        occ = occupancy(usage_counts(used, *feat.shape[:2]), samples)
+        occ = _occupancy(pos, feat.shape[:2], constraint)
         lam = float(opts.occupancy)
         if constraint is not None:
             occ, lam = constraint.penalise(occ, lam)
@@ -88,6 +86,15 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
         if progress is not None:
             progress(1)
     return pos
+
+
+def _occupancy(pos: np.ndarray, source_shape, constraint) -> np.ndarray:
+    """The occupancy of the exemplar (h, w) by pos, or by the positions `constraint` counts.
+    A function of its own so that nothing keeps this sweep's pos alive into the next (at
+    4096x4096 one position field is 128 MiB)."""
+    used, samples = ((pos, pos.shape[0] * pos.shape[1]) if constraint is None else
+                     constraint.counted(pos, source_shape[0] * source_shape[1]))
+    return occupancy(usage_counts(used, *source_shape), samples)
 
 
 def _pair(values) -> tuple[float, float]:
