@@ -1,0 +1,142 @@
+"""Guided synthesis measured on development exemplars: the figures of docs/guide.md.
+
+Each exemplar is two development exemplars side by side (A | B, 128 px each), its guide 0 | 1;
+the target guide is 0 on the output's left half and 1 on its right half (192x192). Per pair
+and seed (0, 1, 2) it reports, with texmetrics.py (coh_mean, in its own venv):
+
+* the share of each output half copied from its material (from the result's positions);
+* each half (4 px kept off the boundary) against its material, over an unguided synthesis of
+  that material alone at the half's size (same seed): the guide's cost in coherence;
+* the whole output against the two-material exemplar, over an unguided synthesis of the same
+  exemplar at the same size (the issue's wording: "coherence within 1.3x of unguided").
+
+With --sheet PATH, a contact sheet of the first seed: per pair the exemplar (A | B), the
+guided output and the unguided one (docs/guide_pairs.jpg).
+
+    python bench/guide_measure.py [--pairs a:b,c:d] [--seeds 0,1,2] [--keep DIR] [--sheet PATH]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+from common import FULL_EXEMPLARS, TEXMETRICS  # noqa: E402
+
+from osmap_cli.imageio import read_image, write_image  # noqa: E402
+from osmap_cli.synth import SynthOptions, synthesize  # noqa: E402
+
+TEXMETRICS_PY = Path(os.environ.get("TEXMETRICS_PYTHON", "/tmp/texmetrics-venv/bin/python"))
+PAIRS = "gravel_green_stones:wood_planks_horizontal,marble_swirl_green:tomatoes," \
+        "bark_vertical:terrazzo_granite"
+SIDE, MARGIN, GAP = 192, 4, 6
+
+
+def coh(exemplar: Path, image: Path) -> float:
+    """texmetrics coh_mean of `image` against `exemplar`."""
+    out = subprocess.run([str(TEXMETRICS_PY), str(TEXMETRICS), str(exemplar), str(image),
+                          "--json"], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout)["2d"]["coh_mean"]
+
+
+def measure_pair(a: str, b: str, seed: int, folder: Path) -> dict:
+    """One pair at one seed: shares, half ratios and the whole-output ratio."""
+    pa, pb = FULL_EXEMPLARS / f"{a}.png", FULL_EXEMPLARS / f"{b}.png"
+    ea, eb = read_image(pa).pixels[..., :3], read_image(pb).pixels[..., :3]
+    exemplar = np.concatenate([ea, eb], axis=1)
+    guide = np.zeros(exemplar.shape[:2], np.float32)
+    guide[:, ea.shape[1]:] = 1.0
+    target = np.zeros((SIDE, SIDE), np.float32)
+    target[:, SIDE // 2:] = 1.0
+    opts = SynthOptions(width=SIDE, height=SIDE, seed=seed)
+    guided = synthesize(exemplar, opts, guide=guide, target_guide=target)
+    unguided = synthesize(exemplar, opts).pixels
+    half = SIDE // 2 - MARGIN
+    from_b = guided.positions[..., 1] >= ea.shape[1] - 0.5
+    files = {"exemplar": exemplar, "guided": guided.pixels, "unguided": unguided,
+             "left": guided.pixels[:, :half], "right": guided.pixels[:, SIDE // 2 + MARGIN:]}
+    half_opts = SynthOptions(width=SIDE // 2, height=SIDE, seed=seed)
+    files["alone_a"] = synthesize(ea, half_opts).pixels[:, :half]
+    files["alone_b"] = synthesize(eb, half_opts).pixels[:, :half]
+    paths = {}
+    for name, pixels in files.items():
+        paths[name] = folder / f"{a}__{b}_{seed}_{name}.png"
+        write_image(str(paths[name]), pixels, 8)
+    halves = [(coh(pa, paths["left"]), coh(pa, paths["alone_a"])),
+              (coh(pb, paths["right"]), coh(pb, paths["alone_b"]))]
+    return {
+        "images": (exemplar, guided.pixels, unguided),
+        "share": (1 - from_b[:, :SIDE // 2].mean(), from_b[:, SIDE // 2:].mean()),
+        "halves": halves,
+        "half": tuple(g / alone for g, alone in halves),
+        "whole": (coh(paths["exemplar"], paths["guided"]),
+                  coh(paths["exemplar"], paths["unguided"])),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--pairs", default=PAIRS)
+    parser.add_argument("--seeds", default="0,1,2")
+    parser.add_argument("--keep", help="write the images here (default: a temporary folder)")
+    parser.add_argument("--sheet", help="write a contact sheet of the first seed here")
+    args = parser.parse_args()
+    if not TEXMETRICS_PY.exists():
+        sys.exit(f"{TEXMETRICS_PY}: the texmetrics venv is missing (see ../shared/tools/README.md)")
+    seeds = [int(s) for s in args.seeds.split(",")]
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(args.keep or tmp)
+        folder.mkdir(parents=True, exist_ok=True)
+        print("| A : B | seed | share A / B | half A / alone, half B / alone "
+              "| whole: guided, unguided (ratio) |")
+        print("| --- | --- | --- | --- | --- |")
+        halves, wholes, per_material, rows = [], [], {}, []
+        for pair in args.pairs.split(","):
+            a, b = pair.split(":")
+            for seed in seeds:
+                m = measure_pair(a, b, seed, folder)
+                if seed == seeds[0]:
+                    rows.append(m["images"])
+                halves += m["half"]
+                for name, raw in zip((a, b), m["halves"]):
+                    per_material.setdefault(name, []).append(raw)
+                wholes.append(m["whole"][0] / m["whole"][1])
+                print(f"| {a} : {b} | {seed} | {m['share'][0]:.1%} / {m['share'][1]:.1%} "
+                      f"| {m['half'][0]:.2f}, {m['half'][1]:.2f} | {m['whole'][0]:.2f}, "
+                      f"{m['whole'][1]:.2f} ({wholes[-1]:.2f}) |", flush=True)
+        print(f"\nhalf ratios: geometric mean {np.exp(np.mean(np.log(halves))):.2f}, "
+              f"max {max(halves):.2f}, over 1.3: {sum(h > 1.3 for h in halves)} of {len(halves)}; "
+              f"whole ratios: max {max(wholes):.2f}")
+        # one seed's unguided synthesis can be luckier than another's: the seeds' means too
+        print("each material, mean over the seeds of the guided half over the mean of the "
+              "material alone: " + ", ".join(
+                  f"{name} {np.mean([g for g, _ in raw]) / np.mean([u for _, u in raw]):.2f}"
+                  for name, raw in per_material.items()))
+    if args.sheet:
+        write_image(args.sheet, sheet(rows), 8)
+
+
+def sheet(rows) -> np.ndarray:
+    """Rows of (exemplar, guided, unguided) side by side on white, GAP px apart."""
+    height = max(max(im.shape[0] for im in row) for row in rows)
+    width = max(sum(im.shape[1] for im in row) for row in rows) + GAP * 2
+    out = np.ones((len(rows) * (height + GAP) - GAP, width, 3), np.float32)
+    for r, row in enumerate(rows):
+        x = 0
+        for im in row:
+            out[r * (height + GAP):r * (height + GAP) + im.shape[0], x:x + im.shape[1]] = im
+            x += im.shape[1] + GAP
+    return out
+
+
+if __name__ == "__main__":
+    main()
