@@ -31,6 +31,15 @@ FULL_EXEMPLARS = SHARED_DIR / "exemplars"
 PEERS_DIR = SHARED_DIR / "design" / "peers"
 PEERS_MD = SHARED_DIR / "design" / "PEERS.md"
 TEXMETRICS = SHARED_DIR / "tools" / "texmetrics.py"
+# the meter runs in its own environment (../shared/tools/README.md)
+TEXMETRICS_PY = Path(os.environ.get("TEXMETRICS_PYTHON", "/tmp/texmetrics-venv/bin/python"))
+
+
+def texmetrics_coh(exemplar: Path | str, image: Path | str) -> float:
+    """texmetrics.py's coh_mean of the 2D image file against the exemplar file."""
+    out = subprocess.run([str(TEXMETRICS_PY), str(TEXMETRICS), str(exemplar), str(image),
+                          "--json"], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout)["2d"]["coh_mean"]
 
 
 def tmp_root() -> Path:

@@ -19,9 +19,7 @@ guided output and the unguided one (docs/guide_pairs.jpg).
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -30,22 +28,15 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from common import FULL_EXEMPLARS, TEXMETRICS  # noqa: E402
+from common import FULL_EXEMPLARS, TEXMETRICS_PY  # noqa: E402
+from common import texmetrics_coh as coh  # noqa: E402
 
 from osmap_cli.imageio import read_image, write_image  # noqa: E402
 from osmap_cli.synth import SynthOptions, synthesize  # noqa: E402
 
-TEXMETRICS_PY = Path(os.environ.get("TEXMETRICS_PYTHON", "/tmp/texmetrics-venv/bin/python"))
 PAIRS = "gravel_green_stones:wood_planks_horizontal,marble_swirl_green:tomatoes," \
         "bark_vertical:terrazzo_granite"
 SIDE, MARGIN, GAP = 192, 4, 6
-
-
-def coh(exemplar: Path, image: Path) -> float:
-    """texmetrics coh_mean of `image` against `exemplar`."""
-    out = subprocess.run([str(TEXMETRICS_PY), str(TEXMETRICS), str(exemplar), str(image),
-                          "--json"], capture_output=True, text=True, check=True)
-    return json.loads(out.stdout)["2d"]["coh_mean"]
 
 
 def measure_pair(a: str, b: str, seed: int, folder: Path) -> dict:

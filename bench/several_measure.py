@@ -1,0 +1,98 @@
+"""Several exemplars (`osmap synth --also`) measured on development exemplars: docs/fill.md.
+
+Each development exemplar is cut into three disjoint quarter-size crops (top-left, top-right,
+bottom-centre); the output has the image's size. Per exemplar and seed it reports each crop's
+share of the output's positions and, with texmetrics.py (coh_mean, in its own venv), the
+output against the whole image (the union of the crops) over a single-exemplar synthesis
+from the first crop against that crop (same options and seed).
+
+With --sheet PATH, a contact sheet of the first seed: per exemplar the three crops, the output
+from all three and the output from the first alone (docs/fill_several.jpg).
+
+    python bench/several_measure.py [--names a,b] [--seeds 0,1,2] [--keep DIR] [--sheet PATH]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+from common import FULL_EXEMPLARS, TEXMETRICS_PY  # noqa: E402
+from common import texmetrics_coh as coh  # noqa: E402
+from fill_sheet import sheet  # noqa: E402
+
+from osmap_cli.imageio import read_image, write_image  # noqa: E402
+from osmap_cli.synth import SynthOptions, synthesize  # noqa: E402
+from osmap_cli.synth.atlas import synthesize_several  # noqa: E402
+
+NAMES = "water_caustics,bricks_dark_red,basket_weave_diagonal,knit_rope_mesh"
+
+
+def crops(image: np.ndarray) -> list[np.ndarray]:
+    """Three disjoint quarter-size crops: top-left, top-right, bottom-centre."""
+    height, width = image.shape[:2]
+    h, w = height // 2, width // 2
+    return [image[:h, :w], image[:h, width - w:], image[height - h:, w // 2:w // 2 + w]]
+
+
+def measure(name: str, seed: int, folder: Path) -> dict:
+    """Shares and the coherence ratio of one exemplar at one seed."""
+    path = FULL_EXEMPLARS / f"{name}.png"
+    image = read_image(path).pixels[..., :3]
+    parts = crops(image)
+    opts = SynthOptions(width=image.shape[1], height=image.shape[0], seed=seed)
+    several = synthesize_several(parts, opts)
+    single = synthesize(parts[0], opts).pixels
+    files = {"several": several.pixels, "single": single, "crop0": parts[0]}
+    paths = {}
+    for key, pixels in files.items():
+        paths[key] = folder / f"{name}_{seed}_{key}.png"
+        write_image(str(paths[key]), pixels, 8)
+    return {"shares": [float((several.exemplar_index == i).mean()) for i in range(3)],
+            "several": coh(path, paths["several"]), "single": coh(paths["crop0"], paths["single"]),
+            "images": [*parts, several.pixels, single]}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--names", default=NAMES)
+    parser.add_argument("--seeds", default="0,1,2")
+    parser.add_argument("--keep", help="write the images here (default: a temporary folder)")
+    parser.add_argument("--sheet", help="write a contact sheet of the first seed here")
+    args = parser.parse_args()
+    if not TEXMETRICS_PY.exists():
+        sys.exit(f"{TEXMETRICS_PY}: the texmetrics venv is missing (see ../shared/tools/README.md)")
+    seeds = [int(s) for s in args.seeds.split(",")]
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(args.keep or tmp)
+        folder.mkdir(parents=True, exist_ok=True)
+        print("| exemplar | seed | shares (crop 1, 2, 3) | coh several vs union "
+              "| coh single vs its crop | ratio |")
+        print("| --- | --- | --- | --- | --- | --- |")
+        for name in args.names.split(","):
+            means = []
+            for seed in seeds:
+                m = measure(name, seed, folder)
+                if seed == seeds[0]:
+                    rows.append(m["images"])
+                means.append((m["several"], m["single"]))
+                shares = ", ".join(f"{s:.0%}" for s in m["shares"])
+                print(f"| {name} | {seed} | {shares} | {m['several']:.2f} | {m['single']:.2f} "
+                      f"| {m['several'] / m['single']:.2f} |", flush=True)
+            several, single = np.mean(means, axis=0)
+            print(f"| {name} | mean | | {several:.2f} | {single:.2f} | {several / single:.2f} |",
+                  flush=True)
+    if args.sheet:
+        write_image(args.sheet, sheet(rows), 8)
+
+
+if __name__ == "__main__":
+    main()
