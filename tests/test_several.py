@@ -38,10 +38,63 @@ def test_every_exemplar_contributes_and_coherence_holds(crops):
     single = synthesize(parts[0], options)
     several_coh = coherence(union, result.pixels, stride=2)
     single_coh = coherence(parts[0], single.pixels, stride=2)
-    # the issue asks for 1.2x; measured 1.7x here (1.18x on water_caustics): the copies are
-    # smaller with several sources (docs/fill.md). A broken atlas (windows straddling two
-    # exemplars, positions in the gaps) scores far above 2x.
-    assert several_coh < 2.0 * single_coh, (several_coh, single_coh)
+    # the issue asks for 1.2x: measured 1.15x here (seeds 1, 2: 0.99x, 0.80x; docs/fill.md
+    # for the development exemplars). An OS-Map trained on the atlas itself (exemplars mixed
+    # pixel by pixel at the coarsest level) scored 1.69x, a broken atlas (windows straddling
+    # two exemplars, positions in the gaps) far above 2x.
+    assert several_coh < 1.3 * single_coh, (several_coh, single_coh)
+
+
+def test_start_places_whole_copies(crops):
+    """The coarsest level: each copy of the OS-Map layout lies in one exemplar, so few
+    neighbours come from different exemplars (an OS-Map trained on the atlas: 65-69 % here),
+    and every exemplar gets a share."""
+    from osmap_cli.synth import SynthOptions
+    from osmap_cli.synth.atlas import continuing_regions, pack, place_copies
+    from osmap_cli.synth.constraints import dilate, mask_pyramid
+    from osmap_cli.synth.pipeline import valid_box
+
+    parts, _ = crops
+    levels, level = 4, 3
+    atlas = pack([np.ascontiguousarray(p) for p in parts], levels, 2)
+    allowed = ~dilate(mask_pyramid(~atlas.inside(), levels)[level], 2)
+    lo, hi = valid_box(allowed.shape, np.eye(2), 2)
+    box = np.zeros_like(allowed)
+    box[int(lo[0]):int(hi[0]) + 1, int(lo[1]):int(hi[1]) + 1] = True
+    allowed &= box
+    for seed in (0, 1, 2):
+        pos = place_copies(atlas, level, (16, 16), np.eye(2),
+                           allowed, SynthOptions(width=128, height=128, seed=seed))
+        assert allowed[np.rint(pos[..., 0]).astype(int), np.rint(pos[..., 1]).astype(int)].all()
+        index = atlas.index(pos * 2 ** level)
+        shares = [float((index == i).mean()) for i in range(3)]
+        assert all(0.15 <= s <= 0.6 for s in shares), shares
+        changes = ((index[:, 1:] != index[:, :-1]).mean() + (index[1:] != index[:-1]).mean()) / 2
+        assert changes < 0.3, changes
+        local = pos - np.array(atlas.origins, np.float32)[index] / 2 ** level
+        ids, count = continuing_regions(local, np.eye(2), False, 1.0)
+        assert all(len(np.unique(index[ids == r])) == 1 for r in range(count))
+
+
+def test_alignment_onto_forbidden_positions_goes_back():
+    """AtlasConstraint.pin takes back a whole-copy shift that put part of a copy on forbidden
+    positions (the alignment sees the atlas' box, not its gaps), and keeps the other shifts."""
+    from osmap_cli.synth.atlas import AtlasConstraint
+
+    forbidden = np.zeros((20, 40), bool)
+    forbidden[:, 12:28] = True  # a gap between two exemplars
+    constraint = AtlasConstraint(np.zeros((8, 8), bool), np.zeros((8, 8, 2), np.float32),
+                                 forbidden, 0.6, jacobian=np.eye(2, dtype=np.float32))
+    rows, cols = np.indices((8, 8), dtype=np.float32)
+    before = np.stack([rows + 2, cols + 2], -1)
+    before[:, 4:, 1] += 26  # two copies: columns 2-5 and 32-35 of the atlas
+    constraint.pin(before.copy())
+    after = before.copy()
+    after[:, :4, 1] += 8   # the first copy shifted onto columns 10-13: two of them forbidden
+    after[:, 4:, 0] += 1   # the second one down a row: allowed
+    pinned = constraint.pin(after.copy())
+    assert np.array_equal(pinned[:, :4], before[:, :4])
+    assert np.array_equal(pinned[:, 4:], after[:, 4:])
 
 
 def test_also_cli(crops, run_cli, tmp_path, samples):

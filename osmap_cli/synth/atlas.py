@@ -2,10 +2,10 @@
 
 The exemplars are packed side by side into one atlas, far enough apart (and at offsets aligned
 to the coarsest level) that no pyramid level mixes two of them; every position whose matching
-window would leave its own exemplar is forbidden to the search (the LevelConstraint of
-osmap_cli.synth.constraints, nothing pinned). The OS-Map lays out the coarsest level from the
-allowed positions of all of them, the refinement draws candidates from all of them, and the
-occupancy penalty spreads the output over all of them.
+window would leave its own exemplar is forbidden to the search (an AtlasConstraint, nothing
+pinned). The OS-Map lays out the coarsest level over exemplar-local positions and each of its
+copies goes to one exemplar (place_copies); the refinement draws candidates from all of them,
+and the occupancy penalty spreads the output over all of them.
 
 >>> result = synthesize_several([a, b, c], SynthOptions(width=256, height=256))
 >>> result.exemplar_index   # int (H, W): which exemplar each pixel came from
@@ -14,7 +14,7 @@ occupancy penalty spreads the output over all of them.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -30,10 +30,19 @@ from osmap_cli.synth.pipeline import (
     valid_box,
 )
 from osmap_cli.synth.render import render, render_settings
+from osmap_cli.texture.features import appearance_features, feature_variance
 from osmap_cli.texture.levels import level_count
 from osmap_cli.texture.pyramid import build_pyramid, level_shapes
+from osmap_kernels.regions import copy_region_ids
 
-__all__ = ["Atlas", "SeveralResult", "pack", "snap", "synthesize_several"]
+__all__ = ["Atlas", "AtlasConstraint", "SeveralResult", "pack", "place_copies", "snap",
+           "synthesize_several"]
+
+# coarsest-level copies of the OS-Map layout: positions that continue each other to within this
+# many pixels go to one exemplar together (0, the exact copies, splits the OS-Map's near-copies
+# between exemplars: 39-43 % of the start's neighbours broken instead of 25-30 % on
+# bricks_dark_red; 2: 1.11x a single synthesis instead of 1.04x there, docs/fill.md)
+START_TOLERANCE = 1.0
 
 
 @dataclass(frozen=True)
@@ -76,6 +85,43 @@ class SeveralResult(SynthResult):
 
     exemplar_index: np.ndarray | None = None
     local_positions: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class AtlasConstraint(LevelConstraint):
+    """The LevelConstraint of an atlas level. Its `pin` (which the refinement calls after every
+    pass and after every whole-copy alignment, osmap_kernels.regions.align_regions) also takes
+    back an alignment shift that moved a copy onto forbidden positions: the alignment knows the
+    atlas' bounding box only, not its gaps, and at the coarse levels shifted 7-23 % of the
+    pixels there, which the next pass then broke up pixel by pixel (a single exemplar's box
+    stops such shifts)."""
+
+    jacobian: np.ndarray | None = None  # float32 (2, 2)
+    wrap: bool = False
+    memory: dict = field(default_factory=dict)  # the positions of the previous call
+
+    def pin(self, pos: np.ndarray) -> np.ndarray:
+        pos = super().pin(pos)
+        prev = self.memory.get("pos")
+        if prev is not None and prev.shape == pos.shape:
+            h, w = self.forbidden.shape
+            iy = np.clip(np.rint(pos[..., 0]).astype(np.int64), 0, h - 1)
+            ix = np.clip(np.rint(pos[..., 1]).astype(np.int64), 0, w - 1)
+            moved = (pos != prev).any(-1)
+            bad = self.forbidden[iy, ix] & moved
+            if bad.any():
+                # the whole copy that moved there goes back (its pixels that moved)
+                jac = np.empty((*pos.shape[:2], 2, 2), np.float32)
+                jac[:] = self.jacobian
+                ids, count = copy_region_ids(np.ascontiguousarray(pos, np.float32), jac,
+                                             self.wrap)
+                del jac
+                hit = np.zeros(count, bool)
+                hit[ids[bad]] = True
+                back = hit[ids] & moved
+                pos[back] = prev[back]
+        self.memory["pos"] = pos.copy()
+        return pos
 
 
 def pack(exemplars, levels: int, radius: int) -> Atlas:
@@ -137,24 +183,112 @@ def synthesize_several(exemplars, options: SynthOptions, progress=None) -> Sever
     def constraint(level, lo, hi):
         # a window must stay inside its own exemplar: its centre at least `reach` pixels in;
         # occupancy is relative to uniform use of the exemplars, not of the whole atlas
-        return LevelConstraint(np.zeros(shapes[level], bool),
+        return AtlasConstraint(np.zeros(shapes[level], bool),
                                np.zeros((*shapes[level], 2), np.float32),
                                dilate(outside[level], reach),
-                               float((~outside[level]).mean()))
+                               float((~outside[level]).mean()),
+                               jacobian=np.asarray(jac, np.float32), wrap=opts.tileable)
 
     def start(level, lo, hi, constraint):
-        # the OS-Map's winner-search window follows one exemplar's extent, not the atlas'
-        extent = tuple(max(-(-s[k] // 2 ** level) for s in atlas.shapes) for k in (0, 1))
-        allowed = ~constraint.forbidden
-        pos = organise(extent, shapes[level], jac, lo, hi, opts, wrap=opts.tileable,
-                       seed=opts.seed, allowed=allowed)
-        if np.allclose(jac, np.eye(2)):
-            pos = np.rint(pos)
-        return snap(pos, allowed)
+        box = np.zeros(constraint.forbidden.shape, bool)
+        box[int(np.ceil(lo[0])):int(np.floor(hi[0])) + 1,
+            int(np.ceil(lo[1])):int(np.floor(hi[1])) + 1] = True
+        return place_copies(atlas, level, shapes[level], jac, ~constraint.forbidden & box, opts)
 
+    # the refinement's seam unit is the feature variance of the whole atlas, which the flat gaps
+    # lower (by 15-21 % on bricks_dark_red and water_caustics): scale it back to the exemplars' own
+    ratios = []
+    for image, out in zip(pyramid, outside):
+        feat = appearance_features([image], opts.feature_dims)[0]
+        inside = np.mean(np.sum(np.square(feat[~out], dtype=np.float64), axis=1))
+        ratios.append(float(inside) / feature_variance([feat]))
+    opts = opts.replace(seam=opts.seam * float(np.mean(ratios)))
     loop = LevelLoop(pyramid, shapes, uniform_jacobian(jac), bounds, start,
                      constraint=constraint)
     pos, jac_field, _ = run_levels(loop, opts, progress)
     pixels = render(atlas.pixels, pos, jac_field, *render_settings(opts))
     index, local = atlas.locate(pos)
     return SeveralResult(pixels, pos, None, index, local)
+
+
+def continuing_regions(pos: np.ndarray, jac: np.ndarray, wrap: bool, tol: float):
+    """(ids int64 (H, W), count): the 4-connected regions of pixels whose positions continue
+    each other to within `tol` pixels (|S[q] - S[p] - J (q - p)| <= tol on each axis)."""
+    H, W = pos.shape[:2]
+    links = []
+    for axis in (0, 1):
+        step = jac[:, axis]  # S[p + unit step along axis] - S[p]
+        ok = np.abs(np.roll(pos, -1, axis) - pos - step).max(-1) <= tol
+        if not wrap:
+            if axis == 0:
+                ok[-1] = False
+            else:
+                ok[:, -1] = False
+        links.append(ok)
+    label = np.arange(H * W).reshape(H, W)
+    while True:
+        new = label
+        for axis, ok in enumerate(links):
+            nxt = np.roll(new, -1, axis)
+            m = np.where(ok, np.minimum(new, nxt), new)
+            back = np.roll(np.where(ok, m, nxt), 1, axis)
+            new = np.minimum(m, back)
+        if np.array_equal(new, label):
+            break
+        label = new
+    _, ids = np.unique(label, return_inverse=True)
+    ids = ids.reshape(H, W)
+    return ids, int(ids.max()) + 1
+
+
+def place_copies(atlas: Atlas, level: int, out_shape, jac, allowed, opts) -> np.ndarray:
+    """The coarsest level's positions (atlas positions of `level`, float (H, W, 2)): one OS-Map
+    over exemplar-local positions (the positions allowed in any exemplar, all exemplars
+    overlaid at one origin), as a single-exemplar synthesis lays out its exemplar; then each of
+    its copies (continuing_regions) placed in one exemplar, those in which most of its positions
+    are allowed, the one furthest behind its share of the allowed positions (the copies taken
+    in a random order).
+
+    (An OS-Map trained on the atlas itself mixes the exemplars pixel by pixel: its neighbourhood
+    updates average positions of different exemplars, which land in a third one; 66 % of the
+    neighbours then came from different exemplars, and the refinement left twice the copy
+    borders of a single-exemplar synthesis.)"""
+    scale = 2 ** level
+    origins = [(y // scale, x // scale) for y, x in atlas.origins]
+    extents = [tuple(-(-s[k] // scale) for k in (0, 1)) for s in atlas.shapes]
+    frame = tuple(max(e[k] for e in extents) for k in (0, 1))
+    own = []  # bool frame: the local positions allowed in each exemplar
+    for (y, x), (h, w) in zip(origins, extents):
+        mask = np.zeros(frame, bool)
+        mask[:h, :w] = allowed[y:y + h, x:x + w]
+        own.append(mask)
+    union = np.logical_or.reduce(own)
+    rows, cols = np.nonzero(union)
+    lo = np.array([rows.min(), cols.min()], np.float64)
+    hi = np.array([rows.max(), cols.max()], np.float64)
+    pos = organise(frame, out_shape, jac, lo, hi, opts, wrap=opts.tileable, seed=opts.seed,
+                   allowed=union)
+    if np.allclose(jac, np.eye(2)):
+        pos = np.rint(pos)
+    ids, count = continuing_regions(pos, np.asarray(jac, np.float64), opts.tileable,
+                                    START_TOLERANCE)
+    sizes = np.bincount(ids.ravel(), minlength=count).astype(np.float64)
+    iy = np.clip(np.rint(pos[..., 0]).astype(np.int64), 0, frame[0] - 1)
+    ix = np.clip(np.rint(pos[..., 1]).astype(np.int64), 0, frame[1] - 1)
+    fits = np.stack([np.bincount(ids.ravel(), mask[iy, ix].ravel().astype(np.float64),
+                                 minlength=count) for mask in own], axis=1)
+    target = np.array([mask.sum() for mask in own], np.float64)
+    target /= target.sum()
+    rng = np.random.default_rng(opts.seed)
+    choice = np.zeros(count, np.int64)
+    assigned = np.zeros(len(own))
+    for region in rng.permutation(count):
+        deficit = target * (assigned.sum() + sizes[region]) - assigned
+        # ties (equal deficits, at the start) broken at random
+        deficit += 1e-9 * rng.random(len(own))
+        deficit[fits[region] < fits[region].max()] = -np.inf
+        k = int(np.argmax(deficit))
+        choice[region] = k
+        assigned[k] += sizes[region]
+    offset = np.array(origins, np.float64)[choice[ids]]
+    return snap((pos + offset).astype(np.float32), allowed)
