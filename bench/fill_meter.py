@@ -1,0 +1,82 @@
+"""The texmetrics side of bench/fill_measure.py; runs in texmetrics' own venv.
+
+    TEXMETRICS_PY bench/fill_meter.py JOBS.json   # prints one JSON object per job
+
+Jobs (made by fill_measure.py): "inpaint" (original, output, mask .npy): whether the pixels
+outside the mask are identical, coh_mean of the 96x96 crop around the hole over the same crop
+of the original (both against the original without the hole's rows, stride 1), and the rim z
+(mean Lab step across the mask border, as a z-score among the same contour moved to 200
+random places of the original). "band" (exemplar, output, mask .npy, tileable): the mean
+per-pixel coherence error over the mask's pixels (stride 1), with texmetrics' seam_z when
+tileable.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+from common import TEXMETRICS  # noqa: E402  (common imports no osmap: fine in this venv)
+
+sys.path.insert(0, str(TEXMETRICS.parent))
+import texmetrics as tm  # noqa: E402
+
+CROP = 96
+
+
+def _rgb(path: str) -> np.ndarray:
+    return tm.read_image(path)[..., :3].astype(np.float64)
+
+
+def _border_mean(lab: np.ndarray, mask: np.ndarray) -> float:
+    steps = []
+    for axis in (0, 1):
+        cross = mask != np.roll(mask, -1, axis)
+        if axis == 0:
+            cross[-1] = False
+        else:
+            cross[:, -1] = False
+        step = np.sqrt(((lab - np.roll(lab, -1, axis)) ** 2).sum(-1))
+        steps.append(step[cross])
+    return float(np.concatenate(steps).mean())
+
+
+def inpaint(job: dict) -> dict:
+    original, output, mask = _rgb(job["original"]), _rgb(job["output"]), np.load(job["mask"])
+    h, w = mask.shape
+    ys, xs = np.nonzero(mask)
+    cy, cx = (ys.min() + ys.max() + 1) // 2, (xs.min() + xs.max() + 1) // 2
+    y0 = min(max(cy - CROP // 2, 0), h - CROP)
+    x0 = min(max(cx - CROP // 2, 0), w - CROP)
+    reference = np.concatenate([original[:ys.min()], original[ys.max() + 1:]], 0)
+    crops = [tm.evaluate(reference, im[y0:y0 + CROP, x0:x0 + CROP], stride=1)[0]["2d"]["coh_mean"]
+             for im in (original, output)]
+    lab_original = tm.to_space(tm.clean(original), False)
+    lab_output = tm.to_space(tm.clean(output), False)
+    rng = np.random.default_rng(0)
+    moved = [_border_mean(np.roll(lab_original, (rng.integers(h), rng.integers(w)), (0, 1)), mask)
+             for _ in range(200)]
+    rim = (_border_mean(lab_output, mask) - np.mean(moved)) / np.std(moved)
+    return {"outside_identical": bool(np.array_equal(original[~mask], output[~mask])),
+            "crop_ratio": crops[1] / crops[0], "rim_z": float(rim)}
+
+
+def band(job: dict) -> dict:
+    exemplar, output, mask = _rgb(job["exemplar"]), _rgb(job["output"]), np.load(job["mask"])
+    report, maps = tm.evaluate(exemplar, output, tileable=job["tileable"], stride=1)
+    out = {"error": float(maps["2d"][0][mask].mean())}
+    if job["tileable"]:
+        out["seam_z"] = float(report["seam_z"])
+    return out
+
+
+def main() -> None:
+    for job in json.loads(Path(sys.argv[1]).read_text()):
+        result = {"inpaint": inpaint, "band": band}[job["kind"]](job)
+        print(json.dumps({"id": job["id"], **result}), flush=True)
+
+
+if __name__ == "__main__":
+    main()
