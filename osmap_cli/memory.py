@@ -18,15 +18,27 @@ ENV_LIMIT = "OSMAP_MEMORY_LIMIT"
 BASE_BYTES = 200 * 2**20  # interpreter, NumPy, Numba and compiled kernels
 
 
-def texture_bytes(width: int, height: int, channels: int, extra_channels: int = 0) -> int:
+# `--also`: the atlas' pyramids, features and k-NN tables, and the whole-copy take-back's
+# per-pixel arrays; measured 115-200 MiB above a single-exemplar synthesis at 256 to 2048 px
+# (three 128 px exemplars), so 128 MiB plus 24 bytes per pixel
+ATLAS_BYTES = 128 * 2**20
+ATLAS_PIXEL_BYTES = 24
+
+
+def texture_bytes(width: int, height: int, channels: int, extra_channels: int = 0,
+                  atlas: bool = False) -> int:
     """Peak working set of `osmap synth` for a WxH output: positions, the Jacobian field,
     copy-region labels per pixel, the output and its converted copy per channel, and
     EXTRA_CHANNELS of --with maps and --uv-out rendered beside it. Kept on the safe side (124
     bytes per pixel with 3 channels): measured since issue 14's large-output work, about 37
     bytes per pixel above the libraries at 1024 px and 63 at 4096 px (BENCHMARKS.md "Memory"
-    and "Large outputs"), so at 4096 px the estimate is about 1.7x the peak."""
+    and "Large outputs"), so at 4096 px the estimate is about 1.7x the peak. `atlas`: several
+    exemplars (--also) on top."""
     pixels = int(width) * int(height)
-    return BASE_BYTES + pixels * (88 + 12 * int(channels) + 12 * int(extra_channels))
+    total = BASE_BYTES + pixels * (88 + 12 * int(channels) + 12 * int(extra_channels))
+    if atlas:
+        total += ATLAS_BYTES + ATLAS_PIXEL_BYTES * pixels
+    return total
 
 
 def volume_bytes(shape, channels: int, feature_dims: int) -> int:

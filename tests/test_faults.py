@@ -191,6 +191,19 @@ def test_the_memory_guard_refuses_before_any_work(run_cli, monkeypatch, tmp_path
     assert result.code == 1 and "needs about" in result.err, result.err
 
 
+def test_the_memory_guard_counts_the_atlas_of_also(run_cli, monkeypatch, tmp_path, exemplar):
+    # a 1024x1024 synthesis is estimated at 324 MiB, with --also at 476 MiB (measured: 271 and
+    # 414 MiB): a limit between the two lets one through and refuses the other before any work
+    monkeypatch.setenv("OSMAP_MEMORY_LIMIT", "400M")
+    result = run_cli("synth", exemplar, "--also", exemplar, "-o", tmp_path / "a.png",
+                     "--size", 1024)
+    assert result.code == 1 and "1024x1024 texture needs about" in result.err, result.err
+    assert list(tmp_path.iterdir()) == []
+    from osmap_cli.memory import check_memory, texture_bytes
+
+    check_memory(texture_bytes(1024, 1024, 3), "a 1024x1024 texture")  # no --also: fits
+
+
 def test_solid_refuses_nan_pixels(run_cli, tmp_path):
     import numpy as np
 

@@ -138,7 +138,7 @@ class SynthJob(Job):
         image = inputs.image
         extra = sum(m.pixels.shape[2] for _, _, m in inputs.maps) + 2 * (self.uv_out is not None)
         check_memory(texture_bytes(self.options.width, self.options.height,
-                                   image.pixels.shape[2], extra),
+                                   image.pixels.shape[2], extra, atlas=bool(self.also)),
                      f"a {self.options.width}x{self.options.height} texture")
         output_depth(self.output, self.bit_depth, image.pixels.shape[2], image.bit_depth)
         _refuse_jpeg_channels(self.output, tuple(image.channel_names))
