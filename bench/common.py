@@ -5,6 +5,7 @@ Nothing here imports osmap itself, so the helpers also work before the package i
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import json
 import os
@@ -33,6 +34,32 @@ PEERS_MD = SHARED_DIR / "design" / "PEERS.md"
 TEXMETRICS = SHARED_DIR / "tools" / "texmetrics.py"
 # the meter runs in its own environment (../shared/tools/README.md)
 TEXMETRICS_PY = Path(os.environ.get("TEXMETRICS_PYTHON", "/tmp/texmetrics-venv/bin/python"))
+
+
+def measure_parser(doc: str, seeds: str | None = None, sheet: bool = True):
+    """argparse parser of a measurement script: --keep DIR, and --seeds and --sheet PATH when
+    asked for."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=doc.split("\n")[0])
+    parser.add_argument("--keep", help="write the images here (default: a temporary folder)")
+    if seeds is not None:
+        parser.add_argument("--seeds", default=seeds, help="comma-separated seeds")
+    if sheet:
+        parser.add_argument("--sheet", help="write a contact sheet of the first seed here")
+    return parser
+
+
+@contextlib.contextmanager
+def measurement_folder(keep: str | None):
+    """The folder a measurement writes its images to (`keep`, else a temporary one), once the
+    texmetrics venv is known to exist (else exit with one line)."""
+    if not TEXMETRICS_PY.exists():
+        sys.exit(f"{TEXMETRICS_PY}: the texmetrics venv is missing (see ../shared/tools/README.md)")
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(keep or tmp)
+        folder.mkdir(parents=True, exist_ok=True)
+        yield folder
 
 
 def texmetrics_coh(exemplar: Path | str, image: Path | str) -> float:

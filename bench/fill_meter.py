@@ -21,26 +21,15 @@ import numpy as np
 from common import TEXMETRICS  # noqa: E402  (common imports no osmap: fine in this venv)
 
 sys.path.insert(0, str(TEXMETRICS.parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 import texmetrics as tm  # noqa: E402
+from texture_stats import rim_z  # noqa: E402  (plain numpy: the tests' rim z, here in Lab)
 
 CROP = 96
 
 
 def _rgb(path: str) -> np.ndarray:
     return tm.read_image(path)[..., :3].astype(np.float64)
-
-
-def _border_mean(lab: np.ndarray, mask: np.ndarray) -> float:
-    steps = []
-    for axis in (0, 1):
-        cross = mask != np.roll(mask, -1, axis)
-        if axis == 0:
-            cross[-1] = False
-        else:
-            cross[:, -1] = False
-        step = np.sqrt(((lab - np.roll(lab, -1, axis)) ** 2).sum(-1))
-        steps.append(step[cross])
-    return float(np.concatenate(steps).mean())
 
 
 def inpaint(job: dict) -> dict:
@@ -53,12 +42,8 @@ def inpaint(job: dict) -> dict:
     reference = np.concatenate([original[:ys.min()], original[ys.max() + 1:]], 0)
     crops = [tm.evaluate(reference, im[y0:y0 + CROP, x0:x0 + CROP], stride=1)[0]["2d"]["coh_mean"]
              for im in (original, output)]
-    lab_original = tm.to_space(tm.clean(original), False)
-    lab_output = tm.to_space(tm.clean(output), False)
-    rng = np.random.default_rng(0)
-    moved = [_border_mean(np.roll(lab_original, (rng.integers(h), rng.integers(w)), (0, 1)), mask)
-             for _ in range(200)]
-    rim = (_border_mean(lab_output, mask) - np.mean(moved)) / np.std(moved)
+    rim = rim_z(tm.to_space(tm.clean(original), False), tm.to_space(tm.clean(output), False),
+                mask)
     return {"outside_identical": bool(np.array_equal(original[~mask], output[~mask])),
             "crop_ratio": crops[1] / crops[0], "rim_z": float(rim)}
 

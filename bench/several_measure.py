@@ -15,17 +15,15 @@ from all three and the output from the first alone (docs/fill_several.jpg).
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from common import FULL_EXEMPLARS, TEXMETRICS_PY  # noqa: E402
+from common import FULL_EXEMPLARS, measure_parser, measurement_folder  # noqa: E402
 from common import texmetrics_coh as coh  # noqa: E402
 from fill_sheet import sheet  # noqa: E402
 
@@ -65,19 +63,12 @@ def measure(name: str, seed: int, folder: Path) -> dict:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser = measure_parser(__doc__, seeds="0,1,2,3,4,5")
     parser.add_argument("--names", default=NAMES)
-    parser.add_argument("--seeds", default="0,1,2,3,4,5")
-    parser.add_argument("--keep", help="write the images here (default: a temporary folder)")
-    parser.add_argument("--sheet", help="write a contact sheet of the first seed here")
     args = parser.parse_args()
-    if not TEXMETRICS_PY.exists():
-        sys.exit(f"{TEXMETRICS_PY}: the texmetrics venv is missing (see ../shared/tools/README.md)")
     seeds = [int(s) for s in args.seeds.split(",")]
     rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        folder = Path(args.keep or tmp)
-        folder.mkdir(parents=True, exist_ok=True)
+    with measurement_folder(args.keep) as folder:
         print("| exemplar | seed | shares (crop 1, 2, 3) | coh several vs union "
               "| coh single vs its crop | ratio | fair |")
         print("| --- | --- | --- | --- | --- | --- | --- |")

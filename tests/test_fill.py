@@ -8,7 +8,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from texture_stats import coherence
+from texture_stats import coherence, rim_z, steps
 
 
 def _hole(shape, size, centre=None):
@@ -25,35 +25,9 @@ def _blob(shape):
     return radius < 22 + 7 * np.sin(3 * angle) + 4 * np.cos(5 * angle + 1)
 
 
-def _steps(image, axis):
-    """Step between each pixel and the next along axis (wrapping), RMS over channels."""
-    return np.sqrt(((image - np.roll(image, -1, axis)) ** 2).sum(-1))
-
-
-def rim_z(original, output, free, draws=200):
-    """Mean step across the border of `free` in output, as a z-score among the mean steps
-    along the same contour moved to random places of the original."""
-    def border_mean(image, mask):
-        values = []
-        for axis in (0, 1):
-            cross = mask != np.roll(mask, -1, axis)
-            if axis == 0:
-                cross[-1] = False
-            else:
-                cross[:, -1] = False
-            values.append(_steps(image, axis)[cross])
-        return np.concatenate(values).mean()
-
-    rng = np.random.default_rng(0)
-    h, w = free.shape
-    ref = [border_mean(np.roll(original, (rng.integers(h), rng.integers(w)), (0, 1)), free)
-           for _ in range(draws)]
-    return (border_mean(output, free) - np.mean(ref)) / np.std(ref)
-
-
 def detail(image, where):
     """Mean step between horizontally and vertically adjacent pixels that are both in `where`."""
-    values = [_steps(image, axis)[where & np.roll(where, -1, axis)] for axis in (0, 1)]
+    values = [steps(image, axis)[where & np.roll(where, -1, axis)] for axis in (0, 1)]
     return np.concatenate(values).mean()
 
 
@@ -62,7 +36,7 @@ def seam_z(image):
     per-line mean steps."""
     worst = -np.inf
     for axis in (0, 1):
-        per = _steps(image, axis).mean(axis=1 - axis)
+        per = steps(image, axis).mean(axis=1 - axis)
         inner = per[:-1]
         worst = max(worst, (per[-1] - inner.mean()) / inner.std())
     return worst

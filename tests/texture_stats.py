@@ -124,3 +124,30 @@ def axis_energy_ratio(exemplar: np.ndarray, images) -> float:
     exemplar; boxy or stripy solid-texture slices score well above 1)."""
     return float(np.mean([axis_energy_share(im) for im in images])
                  / max(axis_energy_share(exemplar), 1e-12))
+
+
+def steps(image, axis):
+    """Step between each pixel and the next along axis (wrapping), RMS over channels."""
+    return np.sqrt(((image - np.roll(image, -1, axis)) ** 2).sum(-1))
+
+
+def rim_z(original, output, free, draws=200):
+    """Mean step across the border of `free` in output, as a z-score among the mean steps
+    along the same contour moved to random places of the original (images in any colour
+    space: tests pass RGB, bench/fill_meter.py Lab)."""
+    def border_mean(image, mask):
+        values = []
+        for axis in (0, 1):
+            cross = mask != np.roll(mask, -1, axis)
+            if axis == 0:
+                cross[-1] = False
+            else:
+                cross[:, -1] = False
+            values.append(steps(image, axis)[cross])
+        return np.concatenate(values).mean()
+
+    rng = np.random.default_rng(0)
+    h, w = free.shape
+    ref = [border_mean(np.roll(original, (rng.integers(h), rng.integers(w)), (0, 1)), free)
+           for _ in range(draws)]
+    return (border_mean(output, free) - np.mean(ref)) / np.std(ref)
