@@ -81,10 +81,11 @@ Guided synthesis (docs/guide.md): --target-guide GUIDE makes the output
 follow GUIDE where the exemplar follows its --guide (a painted mask, a
 gradient, a height map; same size as the exemplar). Without --guide the
 exemplar's blurred luminance is its guide, so --target-guide photo.png
-lays the texture out along the photo's shapes. Guides are gray images
-(RGB(A): their luminance), values as stored (8/16-bit: 0..1); GUIDE of
-any size is resized to the output. --guide-weight (default 1) sets how
-strongly the output follows it.
+lays the texture out along the photo's shapes (faintly at the default
+weight; --guide-weight 2 to 3 shows them, with some smeared patches).
+Guides are gray images (RGB(A): their luminance), values as stored
+(8/16-bit: 0..1); GUIDE of any size is resized to the output.
+--guide-weight (default 1) sets how strongly the output follows it.
 
 Same inputs, options and seed give the same output, whatever the number of
 threads (NUMBA_NUM_THREADS) or -j, byte for byte in every format. Outputs
