@@ -4,6 +4,8 @@ exemplars (seed 0, defaults), measured with texmetrics.py (bench/fill_meter.py, 
 * inpaint: a 64x64 hole and an irregular hole at the centre (bench/fill_sheet.py's): outside
   the mask identical, the 96x96 crop ratio and the rim z (the issue's targets: ratio under
   1.3, rim z under 3);
+* exemplar: `inpaint --exemplar`, the top part of each photo (a 40x40 hole) filled from its
+  bottom part (bench/fill_sheet.py's exemplar_split): the same three figures;
 * tileable: seam_z of the photo and of the result, the centre identical, and the mean
   per-pixel error over the bands, over that of `osmap synth --tileable` at the image's size on
   the same pixels (the issue's target: no worse, 1.0), and the same ratio over the band pixels
@@ -13,7 +15,7 @@ exemplars (seed 0, defaults), measured with texmetrics.py (bench/fill_meter.py, 
   on the same pixels, next to the tileable result's wrap strip (the left and right bands) over
   synth's.
 
-    python bench/fill_measure.py [--names a,b] [--what inpaint,tileable,strip] [--keep DIR]
+    python bench/fill_measure.py [--names a,b] [--what inpaint,exemplar,tileable,strip] [--keep DIR]
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from common import FULL_EXEMPLARS, TEXMETRICS_PY, measure_parser, measurement_folder  # noqa: E402
-from fill_sheet import blob_hole, square_hole  # noqa: E402
+from fill_sheet import blob_hole, exemplar_split, square_hole  # noqa: E402
 
 from osmap_cli.imageio import read_image, write_image  # noqa: E402
 from osmap_cli.synth import SynthOptions, synthesize  # noqa: E402
@@ -84,6 +86,13 @@ def make(name: str, what, jobs: Jobs) -> dict:
             jobs.add("inpaint", f"{name}/{hole_name}", original=str(path),
                      output=jobs.image(f"{name}_{hole_name}", out),
                      mask=jobs.mask(f"{name}_{hole_name}", hole))
+    if "exemplar" in what:
+        top, bottom, hole = exemplar_split(image)
+        out = inpaint(top, hole, SynthOptions(seed=0), exemplars=[bottom]).pixels
+        jobs.add("exemplar", f"{name}/exemplar", photo=str(path),
+                 original=jobs.image(f"{name}_top", top),
+                 output=jobs.image(f"{name}_from_exemplar", out),
+                 mask=jobs.mask(f"{name}_top_hole", hole))
     if "tileable" not in what and "strip" not in what:
         return {}
     border = FillOptions().band(shape)
@@ -118,7 +127,7 @@ def main() -> None:
     parser = measure_parser(__doc__, sheet=False)
     parser.add_argument("--names", default=",".join(sorted(
         p.stem for p in FULL_EXEMPLARS.glob("*.png"))))
-    parser.add_argument("--what", default="inpaint,tileable,strip")
+    parser.add_argument("--what", default="inpaint,exemplar,tileable,strip")
     args = parser.parse_args()
     what, names = args.what.split(","), args.names.split(",")
     with measurement_folder(args.keep) as folder:
@@ -132,6 +141,11 @@ def main() -> None:
             sq, ir = r[f"{n}/square"], r[f"{n}/irregular"]
             print(f"| {n} | {sq['crop_ratio']:.2f} | {sq['rim_z']:.2f} | {ir['crop_ratio']:.2f} "
                   f"| {ir['rim_z']:.2f} | {sq['outside_identical'] and ir['outside_identical']} |")
+    if "exemplar" in what:
+        print("\n| exemplar | crop ratio | rim z | outside identical |\n| --- | --- | --- | --- |")
+        for n in names:
+            e = r[f"{n}/exemplar"]
+            print(f"| {n} | {e['crop_ratio']:.2f} | {e['rim_z']:.2f} | {e['outside_identical']} |")
     if "tileable" in what:
         print("\n| exemplar | border | seam_z photo | seam_z tileable | centre identical "
               f"| band error tileable | synth --tileable | ratio | ratio {FAR}+ px from the edges "

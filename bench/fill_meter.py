@@ -6,9 +6,10 @@ Jobs (made by fill_measure.py): "inpaint" (original, output, mask .npy): whether
 outside the mask are identical, coh_mean of the 96x96 crop around the hole over the same crop
 of the original (both against the original without the hole's rows, stride 1), and the rim z
 (mean Lab step across the mask border, as a z-score among the same contour moved to 200
-random places of the original). "band" (exemplar, output, mask .npy, tileable): the mean
-per-pixel coherence error over the mask's pixels (stride 1), with texmetrics' seam_z when
-tileable.
+random places of the original). "exemplar" (photo, original: its top part, output, mask):
+the same for `inpaint --exemplar` (bench/fill_sheet.py's exemplar_split). "band" (exemplar,
+output, mask .npy, tileable): the mean per-pixel coherence error over the mask's pixels
+(stride 1), with texmetrics' seam_z when tileable.
 """
 
 from __future__ import annotations
@@ -48,6 +49,20 @@ def inpaint(job: dict) -> dict:
             "crop_ratio": crops[1] / crops[0], "rim_z": float(rim)}
 
 
+def from_exemplar(job: dict) -> dict:
+    """`inpaint --exemplar`: the crop is the hole and 16 px around it, the reference the whole
+    photo without the crop's rows (default stride); the rim z in RGB, as tests/test_fill.py."""
+    photo, top = _rgb(job["photo"]), _rgb(job["original"])
+    output, mask = _rgb(job["output"]), np.load(job["mask"])
+    ys, xs = np.nonzero(mask)
+    y0, y1 = max(ys.min() - 16, 0), ys.max() + 17
+    x0, x1 = max(xs.min() - 16, 0), xs.max() + 17
+    reference = np.delete(photo, np.arange(y0, y1), axis=0)
+    crops = [tm.evaluate(reference, im[y0:y1, x0:x1])[0]["2d"]["coh_mean"] for im in (top, output)]
+    return {"outside_identical": bool(np.array_equal(top[~mask], output[~mask])),
+            "crop_ratio": crops[1] / crops[0], "rim_z": float(rim_z(top, output, mask))}
+
+
 def band(job: dict) -> dict:
     exemplar, output, mask = _rgb(job["exemplar"]), _rgb(job["output"]), np.load(job["mask"])
     report, maps = tm.evaluate(exemplar, output, tileable=job["tileable"], stride=1)
@@ -59,7 +74,8 @@ def band(job: dict) -> dict:
 
 def main() -> None:
     for job in json.loads(Path(sys.argv[1]).read_text()):
-        result = {"inpaint": inpaint, "band": band}[job["kind"]](job)
+        kinds = {"inpaint": inpaint, "exemplar": from_exemplar, "band": band}
+        result = kinds[job["kind"]](job)
         print(json.dumps({"id": job["id"], **result}), flush=True)
 
 
