@@ -14,6 +14,7 @@ output, mask .npy, tileable): the mean per-pixel coherence error over the mask's
 
 from __future__ import annotations
 
+import functools
 import json
 import sys
 from pathlib import Path
@@ -63,10 +64,15 @@ def from_exemplar(job: dict) -> dict:
             "crop_ratio": crops[1] / crops[0], "rim_z": float(rim_z(top, output, mask))}
 
 
+@functools.lru_cache(maxsize=4)
+def _evaluated(exemplar: str, output: str, tileable: bool):
+    """texmetrics' (report, maps) at stride 1: several masks of one output share them."""
+    return tm.evaluate(_rgb(exemplar), _rgb(output), tileable=tileable, stride=1)
+
+
 def band(job: dict) -> dict:
-    exemplar, output, mask = _rgb(job["exemplar"]), _rgb(job["output"]), np.load(job["mask"])
-    report, maps = tm.evaluate(exemplar, output, tileable=job["tileable"], stride=1)
-    out = {"error": float(maps["2d"][0][mask].mean())}
+    report, maps = _evaluated(job["exemplar"], job["output"], job["tileable"])
+    out = {"error": float(maps["2d"][0][np.load(job["mask"])].mean())}
     if job["tileable"]:
         out["seam_z"] = float(report["seam_z"])
     return out
