@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from common import TEXMETRICS  # noqa: E402  (common imports no osmap: fine in this venv)
+from common import TEXMETRICS  # common imports no osmap: fine in this venv
 
 sys.path.insert(0, str(TEXMETRICS.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
