@@ -23,6 +23,9 @@ from osmap_kernels.common import EIGHT_NEIGHBOURS, neighbour, sample
 #   reach     int64    shifts tried: every (dy, dx) with |dy|, |dx| <= reach
 AlignParams = namedtuple("AlignParams", "radius wrap lo hi seam max_area reach")
 
+# neighbours whose positions continue each other to within this (each axis) are one copy
+COPY_TOL = 1e-3
+
 
 @njit(cache=True)
 def _find(parent, i):
@@ -62,9 +65,10 @@ def _label_counts(labels, count):
 
 
 @njit(cache=True, inline="always")
-def _copy_region_forest(pos, jac, wrap):
-    """Union-find forest (int64[H*W]) of the copy regions: every root is its region's first
-    pixel in scan order."""
+def _copy_region_forest(pos, jac, wrap, tol):
+    """Union-find forest (int64[H*W]) of the copy regions (neighbours whose positions continue
+    each other to within tol on each axis): every root is its region's first pixel in scan
+    order."""
     H, W = pos.shape[0], pos.shape[1]
     parent = np.arange(H * W)
     for y in range(H):
@@ -82,7 +86,7 @@ def _copy_region_forest(pos, jac, wrap):
                 J = jac[y, x]
                 ey = pos[qy, qx, 0] - pos[y, x, 0] - (J[0, 0] * dy + J[0, 1] * dx)
                 ex = pos[qy, qx, 1] - pos[y, x, 1] - (J[1, 0] * dy + J[1, 1] * dx)
-                if abs(ey) < 1e-3 and abs(ex) < 1e-3:
+                if abs(ey) < tol and abs(ex) < tol:
                     a = _find(parent, y * W + x)
                     b = _find(parent, qy * W + qx)
                     if a != b:
@@ -94,7 +98,7 @@ def _copy_region_forest(pos, jac, wrap):
 def copy_region_labels(pos, jac, wrap):
     """Label of every pixel's copy region: the scan index of its first pixel. int64[H, W]."""
     H, W = pos.shape[0], pos.shape[1]
-    parent = _copy_region_forest(pos, jac, wrap)
+    parent = _copy_region_forest(pos, jac, wrap, COPY_TOL)
     labels = np.empty((H, W), np.int64)
     for y in range(H):
         for x in range(W):
@@ -103,12 +107,13 @@ def copy_region_labels(pos, jac, wrap):
 
 
 @njit(cache=True, inline="always")
-def copy_region_ids(pos, jac, wrap):
+def copy_region_ids(pos, jac, wrap, tol=COPY_TOL):
     """(ids int64[H, W], count): the copy regions numbered 0 .. count - 1 in the scan order of
     their first pixels. The same order as copy_region_labels', so label-ordered work gives the
-    same result; per-region arrays then hold count entries, not H*W."""
+    same result; per-region arrays then hold count entries, not H*W. A larger `tol` joins
+    near-copies too (neighbours whose positions continue each other to within tol)."""
     H, W = pos.shape[0], pos.shape[1]
-    parent = _copy_region_forest(pos, jac, wrap)
+    parent = _copy_region_forest(pos, jac, wrap, tol)
     ids = np.empty((H, W), np.int64)
     count = 0
     for i in range(H * W):

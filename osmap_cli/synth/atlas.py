@@ -111,11 +111,9 @@ class AtlasConstraint(LevelConstraint):
             bad = self.forbidden[iy, ix] & moved
             if bad.any():
                 # the whole copy that moved there goes back (its pixels that moved)
-                jac = np.empty((*pos.shape[:2], 2, 2), np.float32)
-                jac[:] = self.jacobian
-                ids, count = copy_region_ids(np.ascontiguousarray(pos, np.float32), jac,
+                ids, count = copy_region_ids(np.ascontiguousarray(pos, np.float32),
+                                             uniform_jacobian(self.jacobian)(pos.shape[:2]),
                                              self.wrap)
-                del jac
                 hit = np.zeros(count, bool)
                 hit[ids[bad]] = True
                 back = hit[ids] & moved
@@ -213,32 +211,11 @@ def synthesize_several(exemplars, options: SynthOptions, progress=None) -> Sever
 
 def continuing_regions(pos: np.ndarray, jac: np.ndarray, wrap: bool, tol: float):
     """(ids int64 (H, W), count): the 4-connected regions of pixels whose positions continue
-    each other to within `tol` pixels (|S[q] - S[p] - J (q - p)| <= tol on each axis)."""
-    H, W = pos.shape[:2]
-    links = []
-    for axis in (0, 1):
-        step = jac[:, axis]  # S[p + unit step along axis] - S[p]
-        ok = np.abs(np.roll(pos, -1, axis) - pos - step).max(-1) <= tol
-        if not wrap:
-            if axis == 0:
-                ok[-1] = False
-            else:
-                ok[:, -1] = False
-        links.append(ok)
-    label = np.arange(H * W).reshape(H, W)
-    while True:
-        new = label
-        for axis, ok in enumerate(links):
-            nxt = np.roll(new, -1, axis)
-            m = np.where(ok, np.minimum(new, nxt), new)
-            back = np.roll(np.where(ok, m, nxt), 1, axis)
-            new = np.minimum(m, back)
-        if np.array_equal(new, label):
-            break
-        label = new
-    _, ids = np.unique(label, return_inverse=True)
-    ids = ids.reshape(H, W)
-    return ids, int(ids.max()) + 1
+    each other to within `tol` pixels (|S[q] - S[p] - J (q - p)| <= tol on each axis), numbered
+    in the scan order of their first pixels (osmap_kernels.regions.copy_region_ids)."""
+    return copy_region_ids(np.ascontiguousarray(pos, np.float32),
+                           uniform_jacobian(jac)(pos.shape[:2]), wrap,
+                           float(np.nextafter(tol, np.inf)))
 
 
 def place_copies(atlas: Atlas, level: int, out_shape, jac, allowed, opts) -> np.ndarray:
