@@ -463,6 +463,24 @@ def test_quality_is_read_by_every_method(exemplar):
     assert steps == {"fast": 2, "default": 2 * base.kopf_iterations}  # two levels
 
 
+@pytest.mark.parametrize("method", ["osmap", "legacy"])
+def test_thin_volume_keeps_its_short_sides_and_looks_like_the_exemplar(exemplar, method):
+    """8x8x64 from 32 px: two levels, the 8-voxel sides kept at both (the positions upsample
+    along the long side only); the long slices stay patch-coherent (measured 0.12 osmap, 0.04
+    legacy against 0.21 for exemplar pixels in random order)."""
+    from osmap_cli.solid.pipeline import plan_levels
+
+    pixels = read_image(exemplar).pixels
+    assert plan_levels([pixels.shape[:2]], (64, 8, 8), 4) == [(64, 8, 8), (32, 8, 8)]
+    options = SolidOptions(width=8, height=8, depth=64, seed=2, method=method).replace(**FAST)
+    result = synthesize_solid([pixels], options)
+    assert result.voxels.shape == (64, 8, 8, 3) and np.isfinite(result.voxels).all()
+    long_slices = [result.voxels[:, :, i] for i in (1, 6)] + [result.voxels[:, i] for i in (1, 6)]
+    noise = pixels.reshape(-1, 3)[np.random.default_rng(0).integers(0, 32 * 32, 64 * 8)]
+    coherence = np.mean([ts.coherence(pixels, s, stride=2) for s in long_slices])
+    assert coherence < 0.75 * ts.coherence(pixels, noise.reshape(64, 8, 3), stride=2)
+
+
 def _boxy(exemplar, side, block, seed=0):
     """A volume of axis-aligned blocks, each cut from a random place of an x, y or z view of
     the exemplar extruded along its normal: straight seams on every slice (what a copy-based

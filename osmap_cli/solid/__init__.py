@@ -11,7 +11,8 @@ on first use, so option validation and `--help` stay fast.
 
 How a volume is made (one job a module):
 - options: SolidOptions, every option and tunable, validated before any work;
-- pipeline: synthesize_solid: the level plan (plan_levels), the exemplar pyramids, a
+- pipeline: synthesize_solid: the level plan (plan_levels: each level halves the volume's
+  sides that stay >= 16 voxels, so thin volumes get a pyramid too), the exemplar pyramids, a
   SolidTask, then the method's run; --orientation makes the material axis-aligned and turns it;
 - methods: METHODS[name], the table of methods (name, one-line summary, what --quality does,
   the module that implements it);

@@ -35,8 +35,8 @@ if TYPE_CHECKING:
     from osmap_cli.solid.options import SolidOptions
 
 EXHAUSTIVE_ITERATIONS = 2  # coarsest level: exhaustive search first, then propagation
-# ... unless voxels x exemplar pixels exceed this: a thin volume (8x8x1024) cannot be made
-# coarser than its short side allows, and an exhaustive search over it took minutes
+# ... unless voxels x exemplar pixels exceed this (only with few --levels on a large exemplar:
+# the level plan otherwise keeps the coarsest level far below it)
 EXHAUSTIVE_BUDGET = 2**25
 
 

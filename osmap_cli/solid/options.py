@@ -37,8 +37,8 @@ class SolidOptions(Options):
     rotate_z: float = option(0.0, -360.0, 360.0, "the material turned about z, degrees")
     # --- tunables (solid preset keys and tuning flags) ---
     method: str = option("osmap", help=method_help(), choices=tuple(METHODS), tunable=True)
-    levels: int = option(4, 1, 8, "pyramid levels (the coarsest volume keeps >= 16 voxels a "
-                         "side)", tunable=True)
+    levels: int = option(4, 1, 8, "pyramid levels (a volume side is halved while it keeps >= "
+                         "16 voxels, the exemplar while its sides do)", tunable=True)
     patch_radius: int = option(2, 1, 4, "in-plane matching window half-size", tunable=True)
     iterations: int = option(3, 1, 20, "search + colour iterations per finer level",
                              tunable=True)

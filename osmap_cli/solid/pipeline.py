@@ -17,16 +17,22 @@ from osmap_cli.texture.pyramid import build_pyramid, half_size
 
 __all__ = ["SolidResult", "plan_levels", "synthesize_solid"]
 
-MIN_COARSE = 16  # the coarsest volume and exemplar level keep at least this many voxels a side
+MIN_COARSE = 16  # the coarsest exemplar level keeps at least this many pixels a side, and a
+#                  volume side is halved only while it keeps at least this many voxels
 
 
 def plan_levels(exemplar_shapes, shape, wanted: int) -> list[tuple[int, int, int]]:
     """The volume's (Z, Y, X) at each pyramid level, finest first: `wanted` levels, fewer when
-    one more halving would take the smallest exemplar side or volume side below MIN_COARSE."""
-    levels = level_count(exemplar_shapes, shape, wanted, min_size=MIN_COARSE, round_up=False)
+    one more halving would take the smallest exemplar side or the volume's longest side below
+    MIN_COARSE. Each level halves every side that stays >= MIN_COARSE and keeps the others, so
+    a thin volume (8x8x1024) still gets a coarse level small enough for an exhaustive search
+    (a cube is halved on every side, the same plan as a single size would give)."""
+    levels = level_count(exemplar_shapes, (max(shape),), wanted, min_size=MIN_COARSE,
+                         round_up=False)
     shapes = [tuple(shape)]
     for _ in range(levels - 1):
-        shapes.append(tuple(half_size((n, n))[0] for n in shapes[-1]))
+        shapes.append(tuple(half_size((n, n))[0] if n // 2 >= MIN_COARSE else n
+                            for n in shapes[-1]))
     return shapes
 
 

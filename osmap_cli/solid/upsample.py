@@ -1,7 +1,10 @@
 """From one pyramid level of the volume to the next finer one: exemplar positions and colours.
 
-Every volume dimension is halved from one level to the next coarser one (a fine voxel v comes
-from coarse voxel v // 2), and so is the exemplar: positions double.
+A volume dimension is halved from one level to the next coarser one, or kept when it is too
+short to halve (a thin volume's pyramid, osmap_cli.solid.pipeline.plan_levels): a fine voxel v
+then comes from coarse voxel v // 2 (halved) or v (kept). The exemplar is halved in both cases,
+so positions double: along a kept side they step two exemplar pixels a voxel until the finer
+level's search matches them again (kept sides are under 32 voxels).
 """
 
 from __future__ import annotations
@@ -12,10 +15,11 @@ from osmap_kernels.solid import PLANE
 
 
 def coarse_index(n: int, m: int):
-    """(index, offset) int64 (n,): the coarse voxel (of m = ceil(n / 2)) of each of n fine
-    voxels along one dimension, and the fine voxel's offset from twice it."""
-    idx = np.minimum(np.arange(n) // 2, m - 1)
-    return idx, np.arange(n) - 2 * idx
+    """(index, offset) int64 (n,): the coarse voxel (of m) of each of n fine voxels along one
+    dimension, and the fine voxel's offset from twice it (halved; 0 where kept: m == n)."""
+    factor = 2 if m < n else 1
+    idx = np.minimum(np.arange(n) // factor, m - 1)
+    return idx, np.arange(n) - factor * idx
 
 
 def upsample_positions(pos: np.ndarray, shape, lo, hi, ex_of_axis) -> np.ndarray:
