@@ -108,7 +108,8 @@ def torus_knot(segments: int = 240, sides: int = 16, p: int = 2, q: int = 3,
     phase = twist * np.arange(segments) / segments
     around = np.linspace(0.0, 2.0 * math.pi, sides, endpoint=False)
     angle = phase[:, None] + around[None, :]
-    ring = (np.cos(angle)[..., None] * normal[:, None] + np.sin(angle)[..., None] * binormal[:, None])
+    ring = (np.cos(angle)[..., None] * normal[:, None]
+            + np.sin(angle)[..., None] * binormal[:, None])
     vertices = (centre[:, None] + tube * ring).reshape(-1, 3)
     i, j = np.meshgrid(np.arange(segments), np.arange(sides), indexing="ij")
     if not uv:
@@ -137,14 +138,17 @@ def torus_knot(segments: int = 240, sides: int = 16, p: int = 2, q: int = 3,
 def write(path: Path, vertices, faces, uv) -> None:
     import trimesh
     from trimesh.visual import TextureVisuals
+    from trimesh.visual.material import SimpleMaterial
 
-    visual = TextureVisuals(uv=uv) if uv is not None else None
+    visual = TextureVisuals(uv=uv, material=SimpleMaterial()) if uv is not None else None
     mesh = trimesh.Trimesh(vertices, faces, visual=visual, process=False)
     if path.suffix == ".obj":
         text = trimesh.exchange.obj.export_obj(mesh, include_normals=False, include_color=False,
                                                include_texture=True, digits=6,
                                                header="made by samples/make_meshes.py")
-        path.write_text(text)
+        # no material file: the UVs are what the sample is for
+        lines = [ln for ln in text.splitlines() if not ln.startswith(("mtllib", "usemtl"))]
+        path.write_text("\n".join(lines) + "\n")
     else:
         path.write_bytes(trimesh.exchange.ply.export_ply(mesh, encoding="binary"))
 

@@ -65,15 +65,15 @@ def read_mesh(path: str) -> Mesh:
     try:
         with _quiet_trimesh(), np.errstate(all="ignore"):
             scene = trimesh.load(name, force="scene", process=False)
-            parts = [g for g in scene.dump() if isinstance(g, trimesh.Trimesh)]
+            parts = _placed_parts(scene, trimesh.Trimesh)
     except OSError as exc:
         raise OsmapError(f"{name}: cannot read ({exc.strerror or exc})") from None
     except Exception as exc:  # noqa: BLE001 - any parser failure is a bad input file
         raise OsmapError(f"{name}: not a mesh trimesh can read ({_one_line(exc)})") from None
     vertices, faces, uvs = [], [], []
     start = 0
-    for part in parts:
-        v = np.asarray(part.vertices, np.float64).reshape(-1, 3)
+    for part, matrix in parts:
+        v = np.asarray(part.vertices, np.float64).reshape(-1, 3) @ matrix[:3, :3].T + matrix[:3, 3]
         f = np.asarray(part.faces, np.int64).reshape(-1, 3)
         uv = getattr(part.visual, "uv", None) if part.visual.kind == "texture" else None
         vertices.append(v)
@@ -84,6 +84,18 @@ def read_mesh(path: str) -> Mesh:
         return Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), None, name)
     uv = np.concatenate(uvs) if all(u is not None for u in uvs) else None
     return Mesh(np.concatenate(vertices), np.concatenate(faces), uv, name)
+
+
+def _placed_parts(scene, kind) -> list:
+    """[(geometry, 4x4 transform)] of every instance of a KIND geometry in the scene (read from
+    the scene graph: Scene.dump copies materials, which needs Pillow for textured files)."""
+    parts = []
+    for node in scene.graph.nodes_geometry:
+        matrix, geometry = scene.graph[node]
+        part = scene.geometry.get(geometry)
+        if isinstance(part, kind):
+            parts.append((part, np.asarray(matrix, np.float64)))
+    return parts
 
 
 # ---------------------------------------------------------------------------------------------
