@@ -117,7 +117,7 @@ def reproduce_command(meta: dict[str, str], path: str) -> str | None:
     command = meta.get("command")
     args = shlex.split(meta.get("args", ""))
     if command == "carve" and "args" in meta:
-        from osmap_cli.carve.job import reproduce
+        from osmap_cli.carving.job import reproduce
 
         return reproduce(meta, path)
     if command == "apply" and meta.get("uv") and meta.get("map"):
@@ -151,7 +151,7 @@ def read_provenance(path: str) -> dict[str, str]:
             handle.seek(0)
             return read_nrrd_header(handle, path)[1]
     if path.lower().endswith((".glb", ".gltf", ".obj", ".mtl", ".ply")):
-        from osmap_cli.carve.meshio import read_mesh_provenance
+        from osmap_cli.carving.meshio import read_mesh_provenance
 
         return read_mesh_provenance(path)
     if path.lower().endswith(".npy"):

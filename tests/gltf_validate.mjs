@@ -1,12 +1,13 @@
 // Validate glTF / GLB files with the Khronos glTF validator (npm package gltf-validator).
-// Usage: node tests/gltf_validate.mjs MODULE_DIR FILE...  -> one JSON line per file:
+// Usage: node tests/gltf_validate.mjs PREFIX FILE...  (PREFIX: where npm installed it, e.g.
+// .ci/node) -> one JSON line per file:
 // {"file": ..., "errors": N, "warnings": N, "messages": [...]}
 import { createRequire } from "module";
 import fs from "fs";
 import path from "path";
 
-const [moduleDir, ...files] = process.argv.slice(2);
-const require = createRequire(path.resolve(moduleDir, "package.json"));
+const [prefix, ...files] = process.argv.slice(2);
+const require = createRequire(path.resolve(prefix, "package.json"));
 const validator = require("gltf-validator");
 
 for (const file of files) {

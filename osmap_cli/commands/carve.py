@@ -1,7 +1,7 @@
 """`osmap carve`: a solid texture carved into real objects (meshes), baked into a texture map.
 
 The command checks every option and plans every output before any work, then runs one
-osmap_cli.carve.job.CarveJob per mesh. Only click and the standard library are imported at
+osmap_cli.carving.job.CarveJob per mesh. Only click and the standard library are imported at
 module level, so `osmap carve --help` stays fast.
 """
 
@@ -135,7 +135,7 @@ class Scale(click.ParamType):
     name = "fit|N|Nx"
 
     def convert(self, value, param, ctx):
-        from osmap_cli.carve.options import parse_scale
+        from osmap_cli.carving.options import parse_scale
 
         if isinstance(value, tuple):
             return value
@@ -197,8 +197,8 @@ def carve_command(ctx, meshes, output, out_dir, name_template, jobs, fail_fast, 
                   preset, quality, tileable, orientation, ex_x, ex_y, ex_z, texture_size,
                   padding, scale, offset, rotate, interpolation, atlas, vertex_colors, texture,
                   bit_depth, with_maps, preview, quiet, **tuning):
-    from osmap_cli.carve.job import CarveJob
-    from osmap_cli.carve.options import CarveOptions
+    from osmap_cli.carving.job import CarveJob
+    from osmap_cli.carving.options import CarveOptions
 
     cluster = cluster_spec(scheduler, scheduler_file, threads, jobs)
     if not meshes:
@@ -238,7 +238,7 @@ def carve_command(ctx, meshes, output, out_dir, name_template, jobs, fail_fast, 
 def _material(ctx, volume, exemplar, ex_x, ex_y, ex_z, size, seed, preset, quality, tileable,
               orientation, tuning):
     """The Material: a volume file, or the exemplars and validated SolidOptions."""
-    from osmap_cli.carve.job import Material
+    from osmap_cli.carving.job import Material
 
     axes = any(f is not None for f in (ex_x, ex_y, ex_z))
     if volume is not None:
@@ -270,7 +270,7 @@ def _plan_outputs(paths, output, out_dir, name_template, texture, preview, withs
                   options, bit_depth, overwrite):
     """[(mesh output, texture or None, preview or None, [(NAME, source, output)])] per mesh,
     checked before any work."""
-    from osmap_cli.carve.meshio import mtl_path
+    from osmap_cli.carving.meshio import mtl_path
     from osmap_cli.imageio import output_format
     from osmap_cli.materials import expand_path
     from osmap_cli.surface.export import check_output_path

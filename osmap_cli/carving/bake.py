@@ -2,7 +2,7 @@
 
 Every texel of the UV layout that a triangle covers (its centre inside the triangle) gets the 3D
 point it maps to (barycentric rasterisation in UV space), carried into the volume by the
-placement (osmap_cli.carve.placement) and sampled there (trilinear, or tricubic). Each UV island
+placement (osmap_cli.carving.placement) and sampled there (trilinear, or tricubic). Each UV island
 is then grown by `padding` texels: a texel next to an island takes the nearest point of its
 neighbour's triangle, so the colour at an island's border continues outwards and mip-maps
 show no seams. Texels no island reaches take the mean colour. With `vertex_colors` the volume
@@ -16,10 +16,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from osmap_cli.carve.mesh import Mesh, check_mesh, smooth_normals
-from osmap_cli.carve.options import CarveOptions
-from osmap_cli.carve.placement import material_transform, overrun
-from osmap_cli.carve.volume import as_volume
+from osmap_cli.carving.mesh import Mesh, check_mesh, smooth_normals
+from osmap_cli.carving.options import CarveOptions
+from osmap_cli.carving.placement import material_transform, overrun
+from osmap_cli.carving.volume import as_volume
 from osmap_cli.errors import OsmapError
 
 __all__ = ["CarveResult", "carve", "texel_corners"]
@@ -60,7 +60,7 @@ def _as_mesh(mesh) -> Mesh:
     if isinstance(mesh, Mesh):
         return mesh
     if isinstance(mesh, (str, bytes)) or hasattr(mesh, "__fspath__"):
-        from osmap_cli.carve.meshio import read_mesh
+        from osmap_cli.carving.meshio import read_mesh
 
         return read_mesh(mesh)
     if hasattr(mesh, "vertices") and hasattr(mesh, "faces"):  # a trimesh.Trimesh
@@ -90,7 +90,7 @@ def carve(mesh, volume, options: CarveOptions | None = None, aligned: dict | Non
     if isinstance(volume, np.ndarray):
         volume = as_volume(volume)
     else:
-        from osmap_cli.carve.volume import read_volume_file
+        from osmap_cli.carving.volume import read_volume_file
 
         volume, tileable = read_volume_file(str(volume))
         options = options.replace(wrap=options.wrap or tileable)
@@ -103,7 +103,7 @@ def carve(mesh, volume, options: CarveOptions | None = None, aligned: dict | Non
     check_mesh(mesh, need_uv=needs_layout and not options.atlas)
     warnings = []
     if needs_layout and (options.atlas or mesh.uv is None):
-        from osmap_cli.carve.atlas import make_atlas
+        from osmap_cli.carving.atlas import make_atlas
 
         mesh = make_atlas(mesh, max(options.texture_size), options.padding)
     A, b = material_transform(mesh.vertices, volume.shape, options.scale_mode, options.scale,

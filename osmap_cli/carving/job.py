@@ -84,7 +84,7 @@ class CarveJob(Job):
 
     @property
     def outputs(self) -> list[str]:
-        from osmap_cli.carve.meshio import mtl_path
+        from osmap_cli.carving.meshio import mtl_path
 
         paths = [self.output]
         if self.output.lower().endswith(".obj"):
@@ -110,8 +110,8 @@ class CarveJob(Job):
     # -- read, check ---------------------------------------------------------------------------
 
     def read(self) -> _Inputs:
-        from osmap_cli.carve.meshio import read_mesh
-        from osmap_cli.carve.volume import read_volume_file
+        from osmap_cli.carving.meshio import read_mesh
+        from osmap_cli.carving.volume import read_volume_file
         from osmap_cli.imageio import read_image
 
         mesh = read_mesh(self.exemplar)
@@ -137,7 +137,7 @@ class CarveJob(Job):
     def check(self, inputs: _Inputs) -> None:
         import numpy as np
 
-        from osmap_cli.carve.mesh import check_mesh
+        from osmap_cli.carving.mesh import check_mesh
         from osmap_cli.imageio import output_format
         from osmap_cli.memory import volume_bytes
 
@@ -187,12 +187,12 @@ class CarveJob(Job):
     # -- compute -------------------------------------------------------------------------------
 
     def compute(self, inputs: _Inputs):
-        from osmap_cli.carve.bake import carve
+        from osmap_cli.carving.bake import carve
 
         material = self.material
         volume, aligned = inputs.volume, {}
         if material.synthesized:
-            from osmap_cli.carve.volume import synthesized
+            from osmap_cli.carving.volume import synthesized
             from osmap_cli.solid import render_volume
 
             result = synthesized(material.files, inputs.images, material.solid)
@@ -207,7 +207,7 @@ class CarveJob(Job):
     # -- stage ---------------------------------------------------------------------------------
 
     def stage(self, outputs, inputs: _Inputs, result) -> tuple[str, list[str]]:
-        from osmap_cli.carve import meshio
+        from osmap_cli.carving import meshio
         from osmap_cli.imageio import encode_image
         from osmap_cli.output import write_bytes
 
@@ -239,7 +239,7 @@ class CarveJob(Job):
         for target, data in files:
             outputs.stage(target, lambda temp, d=data: write_bytes(temp, d))
         if self.preview is not None:
-            from osmap_cli.carve.preview import render_preview
+            from osmap_cli.carving.preview import render_preview
 
             outputs.stage(self.preview, lambda temp: encode_image(
                 temp, render_preview(result, PREVIEW_SIZE), 8, metadata=meta("preview"),
@@ -328,7 +328,7 @@ def _embedded_png(texture: str, depth, pixels, written: str | None, metadata: di
 
 def carve_args(job: CarveJob) -> list[str]:
     """Canonical `osmap carve` flags (no mesh, no -o) that make the job's outputs again."""
-    from osmap_cli.carve.options import CarveOptions
+    from osmap_cli.carving.options import CarveOptions
     from osmap_cli.options import flag_args, number_text
     from osmap_cli.solid.options import SolidOptions
 

@@ -38,7 +38,7 @@ def render_preview(result, size: int = 384) -> np.ndarray:
     faces = mesh.faces
     normals = result.normals[faces]
     if result.texture is not None:
-        from osmap_cli.carve.bake import texel_corners
+        from osmap_cli.carving.bake import texel_corners
 
         texture = result.texture
         uv = texel_corners(mesh, texture.shape[1], texture.shape[0])

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from osmap_cli.carve.mesh import Mesh, merged
+from osmap_cli.carving.mesh import Mesh, merged
 from osmap_cli.errors import OsmapError
 
 __all__ = ["make_atlas"]

@@ -17,7 +17,7 @@ import os
 
 import numpy as np
 
-from osmap_cli.carve.mesh import Mesh
+from osmap_cli.carving.mesh import Mesh
 from osmap_cli.errors import OsmapError
 
 __all__ = ["MESH_INPUTS", "MESH_OUTPUTS", "mesh_files", "read_mesh", "read_mesh_provenance"]

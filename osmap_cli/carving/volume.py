@@ -21,6 +21,9 @@ def as_volume(array, name: str = "volume") -> np.ndarray:
     if array.dtype.kind not in "fiub":
         raise OsmapError(f"{name}: not a volume of numbers (dtype {array.dtype})")
     if array.ndim == 3:
+        if array.shape[2] <= MAX_CHANNELS < min(array.shape[:2]):
+            raise OsmapError(f"{name}: not a volume: an array of shape {array.shape} is an image "
+                             "(rows, columns, channels); a volume is (Z, Y, X) or (Z, Y, X, C)")
         array = array[..., None]
     if array.ndim != 4:
         raise OsmapError(f"{name}: not a volume: expected (Z, Y, X) or (Z, Y, X, C) voxels, "
@@ -57,7 +60,10 @@ def read_volume_file(path: str) -> tuple[np.ndarray, bool]:
     if not os.path.exists(path):
         raise OsmapError(f"{path}: no such file")
     try:
-        array, meta = read_volume(path)
+        if path.lower().endswith(".npy"):
+            array, meta = np.load(path, allow_pickle=False), {}
+        else:
+            array, meta = read_volume(path)
     except OsmapError:
         raise
     except (OSError, ValueError, KeyError, EOFError) as exc:
