@@ -46,14 +46,15 @@ def _one_line(exc: BaseException) -> str:
     return text[:200]
 
 
-def read_mesh(path: str) -> Mesh:
-    """The triangles of every mesh in the file (scene transforms applied) with their UVs when
-    every part has them; OsmapError for a file that cannot be read."""
+def read_geometry(path: str, extensions=MESH_INPUTS):
+    """(vertices float64 (n, 3), triangles int64 (m, 3), uv float64 (n, 2) or None) of every mesh
+    and point cloud in the file, scene transforms applied (m is 0 for a point cloud); UVs when
+    every mesh has them. OsmapError for a file that cannot be read."""
     name = os.fsdecode(path)
     ext = os.path.splitext(name)[1].lower()
-    if ext not in MESH_INPUTS:
+    if ext not in extensions:
         raise OsmapError(f"{name}: unsupported mesh format {ext or '(no extension)'!r} (use "
-                         f"{', '.join(MESH_INPUTS)})")
+                         f"{', '.join(extensions)})")
     if not os.path.exists(name):
         raise OsmapError(f"{name}: no such file")
     if not os.path.isfile(name):
@@ -65,25 +66,33 @@ def read_mesh(path: str) -> Mesh:
     try:
         with _quiet_trimesh(), np.errstate(all="ignore"):
             scene = trimesh.load(name, force="scene", process=False)
-            parts = _placed_parts(scene, trimesh.Trimesh)
+            parts = _placed_parts(scene, (trimesh.Trimesh, trimesh.PointCloud))
     except OSError as exc:
         raise OsmapError(f"{name}: cannot read ({exc.strerror or exc})") from None
     except Exception as exc:  # noqa: BLE001 - any parser failure is a bad input file
         raise OsmapError(f"{name}: not a mesh trimesh can read ({_one_line(exc)})") from None
-    vertices, faces, uvs = [], [], []
+    vertices, faces, uvs = [np.zeros((0, 3))], [np.zeros((0, 3), np.int64)], []
     start = 0
     for part, matrix in parts:
-        v = np.asarray(part.vertices, np.float64).reshape(-1, 3) @ matrix[:3, :3].T + matrix[:3, 3]
-        f = np.asarray(part.faces, np.int64).reshape(-1, 3)
-        uv = getattr(part.visual, "uv", None) if part.visual.kind == "texture" else None
-        vertices.append(v)
-        faces.append(f + start)
-        uvs.append(None if uv is None or len(uv) != len(v) else np.asarray(uv, np.float64))
+        v = np.asarray(part.vertices, np.float64)
+        if v.ndim != 2 or v.shape[1] != 3:
+            raise OsmapError(f"{name}: vertices need three coordinates x y z")
+        vertices.append(v @ matrix[:3, :3].T + matrix[:3, 3])
+        if isinstance(part, trimesh.Trimesh):
+            faces.append(np.asarray(part.faces, np.int64).reshape(-1, 3) + start)
+            uv = getattr(part.visual, "uv", None) if part.visual.kind == "texture" else None
+            uvs.append(None if uv is None or len(uv) != len(v) else np.asarray(uv, np.float64))
+        else:
+            uvs.append(None)
         start += len(v)
-    if not faces:
-        return Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), None, name)
-    uv = np.concatenate(uvs) if all(u is not None for u in uvs) else None
-    return Mesh(np.concatenate(vertices), np.concatenate(faces), uv, name)
+    uv = np.concatenate(uvs) if uvs and all(u is not None for u in uvs) else None
+    return np.concatenate(vertices), np.concatenate(faces), uv
+
+
+def read_mesh(path: str) -> Mesh:
+    """The triangles of every mesh in the file (see read_geometry) as a carve Mesh."""
+    vertices, faces, uv = read_geometry(path)
+    return Mesh(vertices, faces, uv, os.fsdecode(path))
 
 
 def _placed_parts(scene, kind) -> list:
@@ -107,12 +116,14 @@ def _trimesh(vertices, faces, normals, uv=None, colours=None):
     from trimesh.visual import ColorVisuals, TextureVisuals
     from trimesh.visual.material import PBRMaterial
 
-    if uv is not None:
+    if colours is not None:
+        visual = ColorVisuals(vertex_colors=colours)
+    elif uv is not None:
         visual = TextureVisuals(uv=uv, material=PBRMaterial(
             name="osmap_carved", baseColorFactor=[255, 255, 255, 255], metallicFactor=0.0,
             roughnessFactor=1.0))
     else:
-        visual = ColorVisuals(vertex_colors=colours) if colours is not None else None
+        visual = None
     mesh = trimesh.Trimesh(vertices=vertices, faces=faces, vertex_normals=normals,
                            visual=visual, process=False, validate=False)
     return mesh
@@ -143,11 +154,12 @@ def _clean_tree(tree: dict, metadata: dict) -> None:
 
 def gltf_bytes(binary: bool, vertices, faces, normals, uv, colours, png: bytes | None,
                metadata: dict) -> bytes:
-    """A GLB (BINARY) or a self-contained glTF (buffers and texture as data URIs)."""
+    """A GLB (BINARY) or a self-contained glTF (buffers and texture as data URIs): UVs when
+    given, the texture PNG as the base colour when given, else vertex COLOURS when given."""
     from trimesh.exchange import gltf
 
-    mesh = _trimesh(vertices, faces, normals, uv=uv if png is not None else None,
-                    colours=colours)
+    mesh = _trimesh(vertices, faces, normals, uv=uv,
+                    colours=None if colours is None else _rgba(colours))
 
     def add_texture_glb(buffer_items, tree):
         if png is not None:
@@ -171,6 +183,17 @@ def gltf_bytes(binary: bool, vertices, faces, normals, uv, colours, png: bytes |
     return files["model.gltf"]
 
 
+def _rgba(colours) -> np.ndarray:
+    """uint8 (n, 4): float colours rounded to 8 bits; grey as RGB, alpha 255 when absent."""
+    colours = np.asarray(colours, np.float32)
+    if colours.shape[1] <= 2:
+        grey = np.repeat(colours[:, :1], 3, axis=1)
+        colours = np.concatenate([grey, colours[:, 1:]], axis=1)
+    rgba = np.full((len(colours), 4), 255, np.uint8)
+    rgba[:, :colours.shape[1]] = np.rint(np.clip(colours, 0.0, 1.0) * 255.0).astype(np.uint8)
+    return rgba
+
+
 def _comment_lines(metadata: dict, prefix: str) -> str:
     return "".join(f"{prefix}{META_KEY}:{k}={' '.join(str(v).split())}\n"
                    for k, v in metadata.items())
@@ -192,15 +215,11 @@ def obj_bytes(vertices, faces, normals, uv, mtl_name: str, texture_name: str,
 
 
 def ply_bytes(vertices, faces, normals, colours, metadata: dict) -> bytes:
-    """A binary PLY with per-vertex colours (8 bits a channel), normals and the provenance as
-    header comments."""
+    """A binary PLY with per-vertex colours (RGBA, 8 bits a channel), normals and the provenance
+    as header comments."""
     from trimesh.exchange import ply
 
-    if colours.shape[1] < 3:
-        colours = np.repeat(colours[:, :1], 3, axis=1)
-    rgba = np.full((len(colours), 4), 255, np.uint8)
-    rgba[:, :colours.shape[1]] = np.rint(np.clip(colours, 0.0, 1.0) * 255.0).astype(np.uint8)
-    mesh = _trimesh(vertices, faces, normals, colours=rgba)
+    mesh = _trimesh(vertices, faces, normals, colours=_rgba(colours))
     with _quiet_trimesh():
         data = ply.export_ply(mesh, encoding="binary", vertex_normal=True)
     head, sep, body = data.partition(b"end_header\n")
