@@ -14,6 +14,7 @@ import pytest
 import trimesh
 from carve_support import small_knot, small_vase, smooth_volume, trilinear, validate_gltf
 
+import osmap_cli as osmap
 from osmap_cli.imageio import read_image, read_metadata
 
 
@@ -252,7 +253,6 @@ def test_on_the_fly_synthesis_with_a_material_map(run_cli, work, small_samples, 
     assert rough.shape == (48, 48, 1) and colour.shape == (48, 48, 3)
     # the same volume synthesized through the public face, the map rendered into it
     # (render_volume) and both carved: the same texels
-    import osmap_cli as osmap
     from osmap_cli.presets import read_preset
 
     solid = osmap.SolidOptions().replace(**read_preset("default", "solid").values).replace(
@@ -270,9 +270,29 @@ def test_on_the_fly_synthesis_with_a_material_map(run_cli, work, small_samples, 
 
 
 def test_python_api_takes_a_path_and_a_volume_file(work):
-    import osmap_cli as osmap
-
     result = osmap.carve(str(work / "knot.ply"), str(work / "vol.npy"),
                          osmap.CarveOptions(texture_width=32, texture_height=32))
     assert result.texture.shape == (32, 32, 3) and isinstance(result, osmap.CarveResult)
     assert sys.modules.get("PIL") is None  # trimesh works without Pillow here
+
+
+def test_aligned_volumes_and_mesh_provenance(run_cli, work, tmp_path):
+    second = smooth_volume(seed=3)[..., :1]
+    np.save(tmp_path / "height.npy", second)
+    result = run_cli("carve", work / "knot.ply", "-o", tmp_path / "k.obj", "--volume",
+                     work / "vol.npy", "--with", f"height={tmp_path / 'height.npy'}",
+                     "--texture-size", "40", "--texture", tmp_path / "k.exr")
+    assert result.code == 0, result.err
+    height = read_image(tmp_path / "k_height.exr").pixels
+    carved = osmap.carve(work / "knot.ply", second,
+                         osmap.CarveOptions(texture_width=40, texture_height=40))
+    assert np.abs(height - carved.texture).max() < 1e-3  # half floats
+    assert "map_Kd k.exr" in (tmp_path / "k.mtl").read_text()
+    for name in ("k.obj", "k.mtl"):
+        meta = json.loads(run_cli("info", tmp_path / name, "--json").out)
+        assert meta["command"] == "carve" and meta["role"] == "mesh"
+        assert meta["reproduce"].startswith("osmap carve knot.ply -o ")
+    np.save(tmp_path / "small.npy", second[:8])
+    result = run_cli("carve", work / "knot.ply", "-o", tmp_path / "k2.glb", "--volume",
+                     work / "vol.npy", "--with", f"h={tmp_path / 'small.npy'}")
+    assert result.code == 1 and "aligned volumes have the same size" in result.err

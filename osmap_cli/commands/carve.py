@@ -28,7 +28,13 @@ from osmap_cli.commands.common import (
     show_progress,
     tuning_flags,
 )
-from osmap_cli.commands.solid import VOLUME_PARAMS, axis_set, volume_options, volume_settings
+from osmap_cli.commands.solid import (
+    VOLUME_PARAMS,
+    Angles,
+    axis_set,
+    volume_options,
+    volume_settings,
+)
 from osmap_cli.errors import OsmapError
 from osmap_cli.solid.options import SolidOptions
 
@@ -112,11 +118,10 @@ Examples:
 """
 
 
-class Triple(click.ParamType):
-    """X,Y,Z numbers."""
+class Offset(click.ParamType):
+    """DX,DY,DZ voxels."""
 
-    def __init__(self, metavar: str, limit: float):
-        self.name, self.limit = metavar, limit
+    name = "DX,DY,DZ"
 
     def convert(self, value, param, ctx):
         if isinstance(value, tuple):
@@ -125,9 +130,9 @@ class Triple(click.ParamType):
             numbers = tuple(float(p) for p in str(value).replace(" ", "").split(","))
         except ValueError:
             numbers = ()
-        if len(numbers) != 3 or not all(abs(n) <= self.limit for n in numbers):
-            self.fail(f"{value!r} is not three numbers {self.name} from -{self.limit:g} to "
-                      f"{self.limit:g} (example: 0,30,0)", param, ctx)
+        if len(numbers) != 3 or not all(abs(n) <= 1e6 for n in numbers):
+            self.fail(f"{value!r} is not three numbers of voxels (example: 0,12.5,-4)", param,
+                      ctx)
         return numbers
 
 
@@ -168,9 +173,9 @@ class Scale(click.ParamType):
               metavar="N", help="Texels each UV island is grown by.")
 @click.option("--scale", "scale", type=Scale(), default="fit", show_default=True,
               help="fit, N voxels per object unit, or Nx repeats across the object.")
-@click.option("--offset", type=Triple("DX,DY,DZ", 1e6), default="0,0,0", show_default=True,
+@click.option("--offset", type=Offset(), default="0,0,0", show_default=True,
               help="Move the material by this many voxels along the volume's x, y, z.")
-@click.option("--rotate", type=Triple("RX,RY,RZ", 360), default="0,0,0", show_default=True,
+@click.option("--rotate", type=Angles(), default="0,0,0", show_default=True,
               help="Turn the material: degrees about x, then y, then z.")
 @click.option("--interpolation", type=click.Choice(("trilinear", "tricubic")),
               default="trilinear", show_default=True, help="How the volume is sampled.")
