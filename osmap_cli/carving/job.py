@@ -54,12 +54,14 @@ class _Inputs:
 
 
 def carve_bytes(texels: int, channels: int, maps: int, voxels: int, vertices: int) -> int:
-    """Peak working set of a carve: per texel the triangle index (twice while padding), the
-    coverage, the colours and their converted copy for every map; the volume (and a converted
-    copy); per vertex the mesh, its topology and normals; and the preview."""
+    """Peak working set of a carve, kept on the safe side: per texel the triangle index (twice
+    while padding), two masks, and per channel of every map the colours, a copy and the
+    encoder's temporaries (20 bytes); the volume (and a converted copy); per vertex the mesh,
+    its topology and normals; and the preview. BENCHMARKS.md "Carve" measured 427 MiB at
+    2048x2048 and 1062 MiB at 4096x4096 (RGB, 128^3 volume); this gives 1.4x that."""
     from osmap_cli.memory import BASE_BYTES
 
-    per_texel = 4 * 2 + 1 + (4 + 4) * channels * (1 + maps)
+    per_texel = 4 * 2 + 2 + 20 * channels * (1 + maps)
     preview = 3 * (2 * PREVIEW_SIZE) ** 2 * (4 + 8 + 12)
     return (BASE_BYTES + texels * per_texel + voxels * channels * 4 * 2 + vertices * 200
             + preview)
