@@ -119,6 +119,41 @@ def test_a_signal_mid_run_stops_cleanly(tmp_path, exemplar, signame, code):
     _assert_clean_failure(done, code, before, tmp_path)
 
 
+@pytest.mark.parametrize("signame,code,word", [("SIGINT", 130, "interrupted"),
+                                               ("SIGTERM", 143, "terminated")])
+def test_a_signal_during_shutdown_is_reported(tmp_path, exemplar, signame, code, word):
+    """A stop signal that lands after the output is complete, while the `osmap` process shuts
+    down: the output stays as written, and the exit says what happened (code and one line),
+    as for a signal mid-run. A sitecustomize hook makes the shutdown last long enough to be
+    hit on purpose."""
+    script = Path(sys.executable).with_name("osmap")
+    if not script.exists():
+        pytest.skip("the osmap console script is not installed next to this interpreter")
+    hook, flag = tmp_path / "hook", tmp_path / "shutting-down"
+    hook.mkdir()
+    (hook / "sitecustomize.py").write_text(
+        "import atexit, time\n"
+        "def slow_shutdown():\n"
+        f"    open({str(flag)!r}, 'w').close()\n"
+        "    time.sleep(3)\n"
+        "atexit.register(slow_shutdown)\n")
+    work = tmp_path / "work"
+    work.mkdir()
+    env = {**os.environ, "PYTHONPATH": str(hook)}
+    process = subprocess.Popen([str(script), "synth", str(exemplar), "-o", "out.png", *SYNTH],
+                               cwd=work, env=env, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not flag.exists() and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert flag.exists(), "the run ended before its shutdown began"
+    process.send_signal(getattr(signal, signame))
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == code, err
+    assert err.splitlines() == [f"osmap: {word}"], err
+    assert (work / "out.png").stat().st_size > 0
+    assert not list(work.glob(".osmap-*")), "temporary file left"
+
+
 def test_long_output_names_work(tmp_path, exemplar):
     name = "n" * 240 + ".png"  # the temporary file's name must not grow from it
     done = _osmap(["synth", exemplar, "-o", name, *SYNTH], tmp_path)
