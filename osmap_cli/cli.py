@@ -183,10 +183,14 @@ _STOP_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
 _SINGLE_THREADED_BLAS = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the command line; returns the exit code (the console script exits with it)."""
+def _single_threaded_blas() -> None:
     for variable in _SINGLE_THREADED_BLAS:
         os.environ.setdefault(variable, "1")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit code (the console script exits with it)."""
+    _single_threaded_blas()
     state = {"debug": os.environ.get("OSMAP_DEBUG", "").strip().lower() in ("1", "true", "yes")}
     threads = os.environ.get("NUMBA_NUM_THREADS")
     if threads is not None and not (threads.strip().isdigit() and int(threads) >= 1):
@@ -291,6 +295,7 @@ def run() -> None:
     128 + its number and one line, instead of killing the interpreter half torn down.
     """
     _console[0] = True
+    _single_threaded_blas()  # before prepare() may import numpy
     os.environ.setdefault("OSMAP_KERNELS", "auto")
     from osmap_cli import kernelwarm
 

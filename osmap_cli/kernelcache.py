@@ -27,7 +27,8 @@ import os
 import sys
 
 __all__ = ["Manifest", "cache_folder", "cpu_identity", "host_marker", "load_manifest",
-           "merge_folder", "package_dir", "portable_root", "seed", "sources_digest"]
+           "merge_folder", "package_dir", "portable_root", "seed", "sources_digest",
+           "write_manifest"]
 
 MANIFEST = "manifest.json"
 LOCK = "osmap-kernels.lock"
@@ -154,6 +155,19 @@ def load_manifest(root: str | None = None) -> Manifest | None:
     return manifest
 
 
+def write_manifest(root: str, packages: list[str], signatures: int) -> None:
+    """ROOT/manifest.json for the portable entries in ROOT/<package>/ (this numba, this
+    interpreter, the packages' sources as they are now)."""
+    import numba
+
+    manifest = {"numba": numba.__version__, "python": python_tag(),
+                "digest": sources_digest(packages), "packages": list(packages), "cpu": "generic",
+                "signatures": signatures}
+    os.makedirs(root, exist_ok=True)
+    with open(os.path.join(root, MANIFEST), "w", encoding="utf-8") as handle:
+        json.dump(manifest, handle, indent=1)
+
+
 def host_marker(manifest: Manifest, suffix: str = "ready") -> str:
     """The file whose presence says: the active cache holds this CPU's entries for every
     signature of MANIFEST (suffix "failed": compiling them failed; it holds the error)."""
@@ -249,10 +263,12 @@ def index_entries(folder: str):
 
 
 def merge_folder(source: str, target: str, accept=None) -> int:
-    """Copy every numba cache entry of SOURCE that TARGET lacks into TARGET, through numba's
-    own index files (an index of other sources is replaced); ACCEPT(key) filters entries.
-    Returns how many entries were added."""
-    from numba.core.caching import IndexDataCacheFile
+    """Copy every numba cache entry of SOURCE that TARGET lacks into TARGET (ACCEPT(key)
+    filters them): the data files byte for byte, under free names, then numba's index file of
+    each kernel rewritten with them (an index of other sources is replaced). Nothing is
+    unpickled but the indexes. Returns how many entries were added."""
+    import numba
+    from numba.core.serialize import dumps
 
     os.makedirs(target, exist_ok=True)
     added = 0
@@ -260,12 +276,40 @@ def merge_folder(source: str, target: str, accept=None) -> int:
         wanted = {k: v for k, v in overloads.items() if accept is None or accept(k)}
         if not wanted:
             continue
-        reader = IndexDataCacheFile(cache_path=source, filename_base=base, source_stamp=stamp)
-        writer = IndexDataCacheFile(cache_path=target, filename_base=base, source_stamp=stamp)
-        present = writer._load_index()
+        index_path = os.path.join(target, f"{base}.nbi")
+        read = _read_index(index_path)
+        present = read[2] if read and read[0] == numba.__version__ and read[1] == stamp else {}
+        merged = dict(present)
+        used = set(present.values())
+        number = 0
         for key, data_name in wanted.items():
-            if key in present:
+            if key in merged:
                 continue
-            writer.save(key, reader._load_data(data_name))
+            while True:
+                number += 1
+                name = f"{base}.{number}.nbc"
+                if name not in used:
+                    break
+            with open(os.path.join(source, data_name), "rb") as handle:
+                data = handle.read()
+            _write_atomic(os.path.join(target, name), data)
+            merged[key] = name
+            used.add(name)
             added += 1
+        if len(merged) > len(present):
+            _write_atomic(index_path, pickle_version(numba.__version__)
+                          + dumps((stamp, merged)))
     return added
+
+
+def pickle_version(version: str) -> bytes:
+    import pickle
+
+    return pickle.dumps(version, protocol=-1)
+
+
+def _write_atomic(path: str, data: bytes) -> None:
+    temp = f"{path}.{os.getpid()}.tmp"
+    with open(temp, "wb") as handle:
+        handle.write(data)
+    os.replace(temp, path)

@@ -53,10 +53,10 @@ PLAN_ENV = "OSMAP_WARM_PLAN"  # set in the processes that run the plan: no neste
 # methods (`osmap solid --method legacy`: 70 CPU s of parallel kernels) compile on first use.
 # A new command with kernels of its own needs one line here.
 PLAN = {
-    "synth": ["synth", "{ex}", "-o", "{out}/synth.png", "--size", "64", "-q"],
+    "synth": ["synth", "{ex}", "-o", "{out}/synth.png", "--size", "64", "--quiet"],
     "surface": ["surface", "--shape", "torus", "-o", "{out}/grid.obj", "--grid", "6x6",
-                "--points", "400", "--steps", "600", "-q"],
-    "solid": ["solid", "{ex}", "-o", "{out}/solid.npy", "--size", "16", "-q"],
+                "--points", "400", "--steps", "600", "--quiet"],
+    "solid": ["solid", "{ex}", "-o", "{out}/solid.npy", "--size", "16", "--quiet"],
 }
 
 _state = {"portable": False, "policy": "host"}
@@ -97,12 +97,24 @@ def prepare() -> None:
 
         if "_toplevel_target_context" in vars(cpu_target):
             return  # something compiled already: too late to change the target
-        kernelcache.seed(manifest)
     except Exception:  # noqa: BLE001 - a broken cache must not stop a run: compile instead
         return
+    # numba read its configuration when imported (above): set the target and read it again,
+    # before anything is compiled, loaded or pickled (seeding pickles numba types)
+    saved = {k: os.environ.get(k) for k in ("NUMBA_CPU_NAME", "NUMBA_CPU_FEATURES")}
     os.environ["NUMBA_CPU_NAME"] = "generic"
     os.environ["NUMBA_CPU_FEATURES"] = ""
     config.reload_config()
+    try:
+        kernelcache.seed(manifest)
+    except Exception:  # noqa: BLE001 - no portable entries after all: this CPU's, compiled
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+        config.reload_config()
+        return
     _state["portable"] = True
 
 
@@ -161,18 +173,25 @@ def _run_plan_entry(args: list[str], work: str) -> int:
     return main([a.format(ex=example, out=out) for a in args])
 
 
-def _children(jobs: list[tuple[list[str], dict]], workers: int, quiet: bool = True) -> list[int]:
-    """Run each (argv, env) as a child process, WORKERS at a time; their exit codes."""
-    pending, running, codes = list(enumerate(jobs)), [], [0] * len(jobs)
+def _children(jobs: list[tuple[list[str], dict]], workers: int) -> list[str | None]:
+    """Run each (argv, env) as a child process, WORKERS at a time; for each, None if it
+    succeeded, else the last line it printed on stderr."""
+    pending, running, results = list(enumerate(jobs)), [], [None] * len(jobs)
     while pending or running:
         while pending and len(running) < workers:
             index, (argv, env) = pending.pop(0)
-            sink = subprocess.DEVNULL if quiet else None
-            running.append((index, subprocess.Popen(argv, env=env, stdin=subprocess.DEVNULL,
-                                                    stdout=sink, stderr=sink)))
-        index, process = running.pop(0)
-        codes[index] = process.wait()
-    return codes
+            errors = tempfile.TemporaryFile()
+            running.append((index, errors, subprocess.Popen(
+                argv, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                stderr=errors)))
+        index, errors, process = running.pop(0)
+        code = process.wait()
+        errors.seek(0)
+        lines = errors.read().decode(errors="replace").strip().splitlines()
+        errors.close()
+        if code != 0:
+            results[index] = lines[-1] if lines else f"exit code {code}"
+    return results
 
 
 def _base_env(staging: str | None, generic: bool) -> dict:
@@ -210,8 +229,8 @@ def run_plan(generic: bool, workers: int | None = None,
         argv = [sys.executable, "-m", "osmap_cli.kernelwarm", "plan-entry", work,
                 json.dumps(args)]
         jobs.append((argv, env))
-    codes = _children(jobs, workers or _workers())
-    return root, [name for name, code in zip(runs, codes) if code != 0]
+    results = _children(jobs, workers or _workers())
+    return root, [f"{name} ({why})" for name, why in zip(runs, results) if why is not None]
 
 
 def _staged(root: str, package: str) -> list[str]:
@@ -227,8 +246,6 @@ def _staged(root: str, package: str) -> list[str]:
 def build_portable(dest: str, log=print) -> int:
     """The build step: compile the plan for the generic CPU into DEST (one folder per package
     and manifest.json). Returns the number of cached kernel signatures."""
-    import numba
-
     started = time.monotonic()
     root, failed = run_plan(generic=True)
     try:
@@ -243,11 +260,7 @@ def build_portable(dest: str, log=print) -> int:
             if added:
                 packages.append(package)
                 count += added
-        manifest = {"numba": numba.__version__, "python": kernelcache.python_tag(),
-                    "digest": kernelcache.sources_digest(packages), "packages": packages,
-                    "cpu": "generic", "signatures": count}
-        with open(os.path.join(dest, kernelcache.MANIFEST), "w", encoding="utf-8") as handle:
-            json.dump(manifest, handle, indent=1)
+        kernelcache.write_manifest(dest, packages, count)
     finally:
         shutil.rmtree(root, ignore_errors=True)
     log(f"osmap: portable kernel cache: {count} signatures of {', '.join(packages)} "
@@ -290,8 +303,9 @@ def compile_for_host(manifest, workers: int | None = None) -> list[str]:
             argv = [sys.executable, "-m", "osmap_cli.kernelwarm", "host-part", manifest.root,
                     json.dumps(part)]
             jobs.append((argv, env))
-        codes = _children(jobs, workers)
-        failed = [f"part {i + 1} of {len(parts)}" for i, code in enumerate(codes) if code]
+        results = _children(jobs, workers)
+        failed = [f"part {i + 1} of {len(parts)} ({why})" for i, why in enumerate(results)
+                  if why is not None]
         for package in manifest["packages"]:
             target = kernelcache.cache_folder(kernelcache.package_dir(package))
             with kernelcache.locked(target):
