@@ -177,20 +177,27 @@ def _children(jobs: list[tuple[list[str], dict]], workers: int) -> list[str | No
     """Run each (argv, env) as a child process, WORKERS at a time; for each, None if it
     succeeded, else the last line it printed on stderr."""
     pending, running, results = list(enumerate(jobs)), [], [None] * len(jobs)
-    while pending or running:
-        while pending and len(running) < workers:
-            index, (argv, env) = pending.pop(0)
-            errors = tempfile.TemporaryFile()
-            running.append((index, errors, subprocess.Popen(
-                argv, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                stderr=errors)))
-        index, errors, process = running.pop(0)
-        code = process.wait()
-        errors.seek(0)
-        lines = errors.read().decode(errors="replace").strip().splitlines()
-        errors.close()
-        if code != 0:
-            results[index] = lines[-1] if lines else f"exit code {code}"
+    try:
+        while pending or running:
+            while pending and len(running) < workers:
+                index, (argv, env) = pending.pop(0)
+                errors = tempfile.TemporaryFile()
+                running.append((index, errors, subprocess.Popen(
+                    argv, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                    stderr=errors)))
+            index, errors, process = running[0]
+            code = process.wait()
+            running.pop(0)
+            errors.seek(0)
+            lines = errors.read().decode(errors="replace").strip().splitlines()
+            errors.close()
+            if code != 0:
+                results[index] = lines[-1] if lines else f"exit code {code}"
+    finally:  # stopped (Ctrl-C, SIGTERM): the children stop too
+        for _, errors, process in running:
+            process.kill()
+            process.wait()
+            errors.close()
     return results
 
 
@@ -370,7 +377,11 @@ def warm_host(announce=None, background: bool = False) -> bool:
 
 
 def _background() -> int:
-    """The background compile after a portable run: lowest priority, one at a time."""
+    """The background compile after a portable run: lowest priority, one at a time; SIGTERM
+    (a shutdown) stops it and its child, their scratch folders removed."""
+    import signal
+
+    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     with contextlib.suppress(OSError):
         os.nice(19)
     folder = kernelcache.cache_folder(kernelcache.package_dir("osmap_kernels"))
