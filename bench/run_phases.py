@@ -68,9 +68,8 @@ with open(os.environ["BENCH_PHASES_OUT"], "w") as handle:
 cli.exit_now(code)
 """
 
-PHASES = ("imports: click, numpy, Numba", "other imports and set-up", "read + check", "kernel loads",
-          "compute",
-          "write", "interpreter start + exit", "total")
+PHASES = ("imports: click, numpy, Numba", "other imports and set-up", "read + check",
+          "kernel loads", "compute", "write", "interpreter start + exit", "total")
 
 
 def _one(argv: list[str], env: dict) -> dict:

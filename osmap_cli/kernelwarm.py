@@ -88,7 +88,7 @@ def prepare() -> None:
     if manifest is None:
         return
     try:
-        if chosen == "auto" and os.path.exists(kernelcache.host_marker(manifest)):
+        if os.path.exists(kernelcache.host_marker(manifest)):
             return
         if not kernelcache.portable_usable(manifest):
             return

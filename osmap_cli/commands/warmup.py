@@ -33,7 +33,7 @@ def warmup_command(quiet: bool) -> None:
 
     OSMAP_KERNELS chooses which kernels the osmap command uses: auto (the default: this CPU's
     once compiled, the portable ones until then, then the background compile), portable (the
-    portable ones until warmup compiles this CPU's; never a background compile), host (this
+    same without the background compile: this CPU's once warmup compiled them), host (this
     CPU's only, compiled on first use).
     """
     from osmap_cli.kernelwarm import warm_host
