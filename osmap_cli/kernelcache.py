@@ -212,10 +212,11 @@ def locked(folder: str, wait: bool = True, name: str = LOCK):
 def portable_usable(manifest: Manifest) -> bool:
     """Whether MANIFEST's entries can serve this installation: the same numba and the same
     kernel sources (a development tree edited since the build: no)."""
+    if manifest.get("digest") != sources_digest(manifest["packages"]):
+        return False
     import numba
 
-    return (manifest.get("numba") == numba.__version__
-            and manifest.get("digest") == sources_digest(manifest["packages"]))
+    return manifest.get("numba") == numba.__version__
 
 
 def seed(manifest: Manifest) -> None:

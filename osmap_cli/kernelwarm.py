@@ -124,9 +124,13 @@ def after_run(argv: list[str] | None = None) -> None:
     interactive terminal (not with -q, --quiet or --json)."""
     if not _state["portable"] or _state["policy"] != "auto":
         return
+    words = set(sys.argv[1:] if argv is None else argv)
     manifest = kernelcache.load_manifest()
-    if manifest is None or any(os.path.exists(kernelcache.host_marker(manifest, state))
-                               for state in ("ready", "failed")):
+    if manifest is None or os.path.exists(kernelcache.host_marker(manifest)):
+        return
+    if os.path.exists(kernelcache.host_marker(manifest, "failed")):
+        _tell("osmap: warning: compiling the kernels for this CPU failed; `osmap warmup` says "
+              "why (runs use the portable ones)", words)
         return
     folder = kernelcache.cache_folder(kernelcache.package_dir("osmap_kernels"))
     with kernelcache.locked(folder, wait=False, name=COMPILE_LOCK) as free:
@@ -142,11 +146,15 @@ def after_run(argv: list[str] | None = None) -> None:
                          else "/")
     except OSError:
         return
-    words = set(sys.argv[1:] if argv is None else argv)
+    _tell("osmap: compiling the kernels for this CPU in the background (once, about a minute); "
+          "until then runs use portable ones", words)
+
+
+def _tell(line: str, words: set) -> None:
+    """LINE on stderr, if it is a terminal and the command was not asked to be quiet."""
     with contextlib.suppress(Exception):
         if sys.stderr.isatty() and not words & {"-q", "--quiet", "--json"}:
-            print("osmap: compiling the kernels for this CPU in the background (once, about a "
-                  "minute); until then runs use portable ones", file=sys.stderr, flush=True)
+            print(line, file=sys.stderr, flush=True)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -382,7 +390,7 @@ def _background() -> int:
     import signal
 
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
-    with contextlib.suppress(OSError):
+    with contextlib.suppress(OSError, AttributeError):  # (no os.nice on Windows)
         os.nice(19)
     folder = kernelcache.cache_folder(kernelcache.package_dir("osmap_kernels"))
     with kernelcache.locked(folder, wait=False, name=COMPILE_LOCK) as free:
