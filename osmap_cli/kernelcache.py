@@ -21,7 +21,6 @@ costs a few file reads, paid by every `osmap` run.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import os
 import sys
@@ -63,6 +62,8 @@ def portable_root() -> str | None:
 
 def _subpath(folder: str) -> str:
     # numba.core.caching._CacheLocator.get_suitable_cache_subpath, for a file in FOLDER
+    import hashlib
+
     return "_".join([os.path.basename(folder), hashlib.sha1(folder.encode()).hexdigest()])
 
 
@@ -89,7 +90,10 @@ def _writable(path: str) -> bool:
 
 
 def cpu_identity() -> str:
-    """A short hash naming this CPU model and its instruction-set features."""
+    """A short checksum naming this CPU model and its instruction-set features (zlib's CRC-32,
+    already imported: every run computes it)."""
+    import zlib
+
     text = ""
     with contextlib.suppress(OSError):
         with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as handle:
@@ -105,12 +109,14 @@ def cpu_identity() -> str:
         import platform
 
         text = f"{platform.machine()} {platform.processor()}"
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
+    return f"{zlib.crc32(text.encode()):08x}"
 
 
 def sources_digest(packages) -> str:
     """sha256 over the Python sources of PACKAGES (names): the portable entries are valid only
     for these bytes (numba stamps each index with its source file's hash too)."""
+    import hashlib
+
     digest = hashlib.sha256()
     for package in sorted(packages):
         folder = package_dir(package)

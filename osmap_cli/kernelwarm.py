@@ -29,13 +29,8 @@ the user wins over all three.
 from __future__ import annotations
 
 import contextlib
-import json
 import os
-import shutil
-import subprocess
 import sys
-import tempfile
-import time
 
 from osmap_cli import kernelcache
 
@@ -122,6 +117,8 @@ def after_run(argv: list[str] | None = None) -> None:
     """After a successful run on the portable kernels (policy auto): start the background
     compile for this CPU, unless one is running or failed before. Says so in one line on an
     interactive terminal (not with -q, --quiet or --json)."""
+    import subprocess
+
     if not _state["portable"] or _state["policy"] != "auto":
         return
     words = set(sys.argv[1:] if argv is None else argv)
@@ -184,6 +181,9 @@ def _run_plan_entry(args: list[str], work: str) -> int:
 def _children(jobs: list[tuple[list[str], dict]], workers: int) -> list[str | None]:
     """Run each (argv, env) as a child process, WORKERS at a time; for each, None if it
     succeeded, else the last line it printed on stderr."""
+    import subprocess
+    import tempfile
+
     pending, running, results = list(enumerate(jobs)), [], [None] * len(jobs)
     try:
         while pending or running:
@@ -233,6 +233,9 @@ def run_plan(generic: bool, workers: int | None = None,
     """Run every plan entry in its own process; with STAGING in its own cache folder (a scratch
     NUMBA_CACHE_DIR each, merged later: no two processes write one numba index), else in the
     user's. Returns the scratch root and the names of the entries that failed."""
+    import json
+    import tempfile
+
     root = tempfile.mkdtemp(prefix="osmap-warm-")
     work = os.path.join(root, "work")
     os.makedirs(work)
@@ -261,6 +264,9 @@ def _staged(root: str, package: str) -> list[str]:
 def build_portable(dest: str, log=print) -> int:
     """The build step: compile the plan for the generic CPU into DEST (one folder per package
     and manifest.json). Returns the number of cached kernel signatures."""
+    import shutil
+    import time
+
     started = time.monotonic()
     root, failed = run_plan(generic=True)
     try:
@@ -302,6 +308,10 @@ def _portable_kernels(manifest) -> list[tuple[str, str, int]]:
 def compile_for_host(manifest, workers: int | None = None) -> list[str]:
     """Compile every signature of the portable cache for this CPU, WORKERS processes at a
     time (a scratch cache each, then merged into the active folders); returns what failed."""
+    import json
+    import shutil
+    import tempfile
+
     kernels = sorted(_portable_kernels(manifest), key=lambda k: -k[2])
     workers = max(1, min(workers or _workers(), len(kernels)))
     parts = [[] for _ in range(workers)]
@@ -356,6 +366,8 @@ def warm_host(announce=None, background: bool = False) -> bool:
     """Compile this CPU's kernels now: the portable signatures when there is a usable portable
     cache (then mark the cache ready), else the plan's runs. Returns True if anything was
     compiled; raises RuntimeError naming what failed."""
+    import shutil
+
     manifest = kernelcache.load_manifest()
     if manifest is not None and not kernelcache.portable_usable(manifest):
         manifest = None
@@ -404,6 +416,8 @@ def _background() -> int:
 
 
 def _main(argv: list[str]) -> int:
+    import json
+
     command, rest = argv[0], argv[1:]
     if command == "plan-entry":
         return _run_plan_entry(json.loads(rest[1]), rest[0])

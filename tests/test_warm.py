@@ -164,7 +164,7 @@ assert kernelwarm.warm_host() is False
     assert _probe(portable, cache, policy="portable") == (False, _host_cpu(), 0)
     # a cache made ready on another CPU is not taken for this one's
     (marker,) = cache.rglob("osmap-host-*.ready")
-    marker.rename(marker.with_name(marker.name.rsplit("-", 1)[0] + "-0123456789abcdef.ready"))
+    marker.rename(marker.with_name(marker.name.rsplit("-", 1)[0] + "-01234567.ready"))
     assert _probe(portable, cache) == (True, "generic", 0)
 
 
@@ -208,7 +208,7 @@ def test_after_a_portable_run_this_cpus_compile_starts_in_the_background(monkeyp
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     monkeypatch.setenv("NUMBA_CPU_NAME", "generic")
     started = []
-    monkeypatch.setattr(kernelwarm.subprocess, "Popen",
+    monkeypatch.setattr(subprocess, "Popen",
                         lambda argv, **kw: started.append((argv, kw)))
     monkeypatch.setitem(kernelwarm._state, "policy", "auto")
     monkeypatch.setitem(kernelwarm._state, "portable", False)
