@@ -203,8 +203,9 @@ def run(quick: bool = False, log=print) -> str:
         "it from the cache in a later, warm process (the first load also sets up Numba's CPU "
         "target, about half a second, whichever kernel comes first).", "",
         md_table(["kernel", "compile CPU s", "signatures", "warm load s"], rows),
-        "A first `osmap synth` compiles the kernels in two groups at once, one in a child "
-        "process (`osmap_cli.synth.warm`); each group in a fresh process (CPU s, interpreter "
+        "Without portable kernels (a development tree), a first `osmap synth` compiles the "
+        "kernels in two groups at once, one in a child process (`osmap_cli.synth.warm`); each "
+        "group in a fresh process (CPU s, interpreter "
         "and imports included; refine with the kernels it shares with organise already cached, "
         "as in a first run, where organise compiles them first): "
         + ", ".join(f"{g} {fmt(s, 1)}" for g, s in groups.items())
