@@ -23,7 +23,8 @@ library's default: this CPU's kernels only, compiled on first use), ``portable``
 kernels while this CPU's are not compiled, and no background compile). A NUMBA_CPU_NAME set by
 the user wins over all three.
 
-    python -m osmap_cli.kernelwarm portable DEST   # the build step: DEST/<package>/, manifest
+    python -m osmap_cli.kernelwarm portable [--if-stale] DEST   # the build step (DEST/<package>/
+                                                                 # and manifest.json)
 """
 
 from __future__ import annotations
@@ -425,8 +426,11 @@ def _main(argv: list[str]) -> int:
         return _compile_part(rest[0], json.loads(rest[1]))
     if command == "background":
         return _background()
-    if command == "portable":
-        build_portable(rest[0])
+    if command == "portable":  # [--if-stale] DEST
+        current = kernelcache.load_manifest(rest[-1])
+        if rest[0] == "--if-stale" and current and kernelcache.portable_usable(current):
+            return 0
+        build_portable(rest[-1])
         return 0
     print(f"unknown command {command!r}", file=sys.stderr)
     return 2
