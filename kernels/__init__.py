@@ -6,3 +6,10 @@ CPU of its kind in `portable-cache/` (the build step runs each command once and 
 Numba compiled), and this CPU's are compiled in the background after the first run
 (osmap_cli.kernelwarm).
 """
+
+import os as _os
+
+if _os.environ.get("OSMAP_QUICK_LOADS") == "1":
+    from osmap_kernels.cacheload import quick_loads as _quick_loads
+
+    _quick_loads()

@@ -297,6 +297,7 @@ def run() -> None:
     _console[0] = True
     _single_threaded_blas()  # before prepare() may import numpy
     os.environ.setdefault("OSMAP_KERNELS", "auto")
+    os.environ.setdefault("OSMAP_QUICK_LOADS", "1")  # osmap_kernels.cacheload
     from osmap_cli import kernelwarm
 
     kernelwarm.prepare()

@@ -320,3 +320,4 @@ def _write_atomic(path: str, data: bytes) -> None:
     with open(temp, "wb") as handle:
         handle.write(data)
     os.replace(temp, path)
+

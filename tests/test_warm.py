@@ -229,3 +229,23 @@ def test_after_a_portable_run_this_cpus_compile_starts_in_the_background(monkeyp
     os.remove(kernelcache.host_marker(manifest, "failed"))
     kernelwarm.after_run([])  # OSMAP_KERNELS=portable: never
     assert len(started) == 1
+
+
+def test_quick_loads_load_the_same_kernels_without_compiling():
+    code = """
+import numpy as np
+from numba.core.caching import Cache
+from osmap_kernels.coherence import usage_counts
+from osmap_kernels.regions import copy_region_areas
+pos = np.random.default_rng(1).integers(0, 8, (6, 6, 2)).astype(np.float32)
+counts = usage_counts(pos, 8, 8)
+areas = copy_region_areas(pos, np.broadcast_to(np.eye(2, dtype=np.float32), (6, 6, 2, 2)).copy(),
+                          False)
+missed = sum(usage_counts.stats.cache_misses.values()) + sum(
+    copy_region_areas.stats.cache_misses.values())
+print(getattr(Cache.load_overload, "quick", False), missed, counts.sum(), areas.tobytes().hex())
+"""
+    quick = _python(code, OSMAP_QUICK_LOADS="1").split()
+    plain = _python(code, OSMAP_QUICK_LOADS="0").split()
+    assert quick[0] == "True" and plain[0] == "False"
+    assert quick[1:] == plain[1:] and quick[1] == "0"  # loaded from the cache, same results
