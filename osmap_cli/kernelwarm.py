@@ -115,13 +115,13 @@ def prepare() -> None:
 
 
 def after_run(argv: list[str] | None = None) -> None:
-    """After a successful run on the portable kernels (policy auto): start the background
-    compile for this CPU, unless one is running or failed before. Says so in one line on an
-    interactive terminal (not with -q, --quiet or --json)."""
+    """After a successful run that used the portable kernels (policy auto): start the
+    background compile for this CPU, unless one is running or failed before. Says so in one
+    line on an interactive terminal (not with -q, --quiet or --json)."""
     import subprocess
 
-    if not _state["portable"] or _state["policy"] != "auto":
-        return
+    if not _state["portable"] or _state["policy"] != "auto" or "osmap_kernels" not in sys.modules:
+        return  # (no kernel ran: `osmap --help`, `osmap info`)
     words = set(sys.argv[1:] if argv is None else argv)
     manifest = kernelcache.load_manifest()
     if manifest is None or os.path.exists(kernelcache.host_marker(manifest)):
