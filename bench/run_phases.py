@@ -35,8 +35,9 @@ marks = {"start": (0.0, 0.0)}
 def mark(name):
     marks[name] = (time.perf_counter() - T0, time.process_time() - C0)
 from osmap_cli import cli, kernelwarm
-cli._single_threaded_blas()
+cli._single_threaded_blas()  # as cli.run() does
 os.environ.setdefault("OSMAP_KERNELS", "auto")
+os.environ.setdefault("OSMAP_QUICK_LOADS", "1")
 kernelwarm.prepare()
 import numba
 mark("numba")
