@@ -120,6 +120,72 @@ def test_a_signal_mid_run_stops_cleanly(tmp_path, exemplar, signame, code):
     _assert_clean_failure(done, code, before, tmp_path)
 
 
+@pytest.mark.parametrize("signame,code,word", [("SIGINT", 130, "interrupted"),
+                                               ("SIGTERM", 143, "terminated")])
+def test_a_signal_during_shutdown_is_reported(tmp_path, exemplar, signame, code, word):
+    """A stop signal that lands after the output is complete, while the `osmap` process shuts
+    down: the output stays as written, and the exit says what happened (code and one line),
+    as for a signal mid-run. A sitecustomize hook makes the shutdown last long enough to be
+    hit on purpose."""
+    script = Path(sys.executable).with_name("osmap")
+    if not script.exists():
+        pytest.skip("the osmap console script is not installed next to this interpreter")
+    hook, flag = tmp_path / "hook", tmp_path / "shutting-down"
+    hook.mkdir()
+    (hook / "sitecustomize.py").write_text(
+        "import atexit, time\n"
+        "def slow_shutdown():\n"
+        f"    open({str(flag)!r}, 'w').close()\n"
+        "    time.sleep(3)\n"
+        "atexit.register(slow_shutdown)\n")
+    work = tmp_path / "work"
+    work.mkdir()
+    env = {**os.environ, "PYTHONPATH": str(hook)}
+    process = subprocess.Popen([str(script), "synth", str(exemplar), "-o", "out.png", *SYNTH],
+                               cwd=work, env=env, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not flag.exists() and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert flag.exists(), "the run ended before its shutdown began"
+    process.send_signal(getattr(signal, signame))
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == code, err
+    assert err.splitlines() == [f"osmap: {word}"], err
+    assert (work / "out.png").stat().st_size > 0
+    assert not list(work.glob(".osmap-*")), "temporary file left"
+
+
+@pytest.mark.parametrize("how", [("-j", "2"), ("--scheduler", "local:1")], ids=["j2", "dask"])
+def test_the_fast_exit_leaves_no_process_and_no_temporary(tmp_path, exemplar, how):
+    """The console script ends without the interpreter's teardown: worker processes (-j), a
+    local Dask cluster, multiprocessing's resource tracker and temporary files are all gone or
+    going by then, with nothing printed."""
+    if how[0] == "--scheduler":
+        pytest.importorskip("distributed")
+    script = Path(sys.executable).with_name("osmap")
+    if not script.exists():
+        pytest.skip("the osmap console script is not installed next to this interpreter")
+    second = tmp_path / "ex2.png"
+    second.write_bytes(exemplar.read_bytes())
+    process = subprocess.Popen([str(script), "synth", str(exemplar), str(second), "--out-dir",
+                                "out", *SYNTH, *how], cwd=tmp_path, stderr=subprocess.PIPE,
+                               text=True, start_new_session=True)
+    _, err = process.communicate(timeout=300)  # also waits for every child holding stderr
+    assert process.returncode == 0 and err == "", err
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["ex.png", "ex2.png"]
+    assert not list(tmp_path.rglob(".osmap-*"))
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        table = subprocess.run(["ps", "-eo", "sid=,stat=,args="], capture_output=True,
+                               text=True).stdout.splitlines()
+        alive = [row for row in table if row.split()[0] == str(process.pid)
+                 and not row.split()[1].startswith("Z")]
+        if not alive:
+            break
+        time.sleep(0.2)
+    assert not alive, alive
+
+
 def test_long_output_names_work(tmp_path, exemplar):
     name = "n" * 240 + ".png"  # the temporary file's name must not grow from it
     done = _osmap(["synth", exemplar, "-o", name, *SYNTH], tmp_path)
