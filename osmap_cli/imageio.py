@@ -42,6 +42,7 @@ import os
 import stat
 import sys
 import tempfile
+import threading
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -522,8 +523,11 @@ def encode_image(
                 spec.attribute(_META_PREFIX + key, value)
 
     fspath = os.fsdecode(os.fspath(path))
-    if fmt == "jpeg" and hasattr(os, "fork"):
-        _in_child(lambda: _oiio_write(fspath, name, label, fmt, spec, data), name, label)
+    if fmt == "jpeg" and _PIPE_PATHS:
+        from osmap_cli.output import write_bytes
+
+        encoded = _through_pipe(lambda target: _oiio_write(target, name, label, fmt, spec, data))
+        write_bytes(fspath, encoded)
     else:
         _oiio_write(fspath, name, label, fmt, spec, data)
     _verify(fspath, name, label, fmt, depth, data)
@@ -564,32 +568,33 @@ def _oiio_write(fspath: str, name: str, label: str, fmt: str, spec, data: np.nda
         raise OsmapError(f"{name}: failed to write {label} file ({exc!r})") from exc
 
 
-def _in_child(write, name: str, label: str) -> None:
-    """Run write() in a forked child process. libjpeg ends the whole process (exit(1), no
-    message) when a write fails, e.g. on a full disk; in a child that only ends the child."""
+# libjpeg ends the whole process (exit(1), no message) when a write fails, e.g. on a full disk.
+# So JPEG is encoded into a pipe, which a thread drains while the encoder runs (OpenImageIO
+# releases the GIL while it writes): a pipe is never full and has no size limit, so the encoder
+# cannot fail there, and its bytes are then written with checked writes. (Encoding in a forked
+# child instead hangs: libjpeg's exit() runs OpenImageIO's thread-pool destructor, which waits
+# for pool threads that were not forked.) Without /dev/fd the encoder writes the file itself.
+_PIPE_PATHS = os.path.isdir("/dev/fd")
+
+
+def _through_pipe(write) -> bytes:
+    """The bytes write(path) puts into the file at PATH, taken through a pipe instead."""
     read_end, write_end = os.pipe()
-    sys.stderr.flush()
-    pid = os.fork()
-    if pid == 0:  # the child: never returns
-        code = 1
-        try:
-            os.close(read_end)
-            oiio.attribute("threads", 1)  # the parent's thread pool did not come along
-            write()
-            code = 0
-        except OsmapError as exc:
-            os.write(write_end, str(exc).encode("utf-8", "replace")[:4000])
-        except BaseException as exc:  # noqa: BLE001 - reported by the parent
-            os.write(write_end, f"{name}: failed to write {label} file ({exc!r})".encode())
-        finally:
-            os._exit(code)
-    os.close(write_end)
-    with os.fdopen(read_end, "rb") as pipe:
-        message = pipe.read().decode("utf-8", "replace")
-    _, status = os.waitpid(pid, 0)
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise OsmapError(message or f"{name}: failed to write {label} file (the writer "
-                         "stopped: is the disk full?)")
+    chunks: list[bytes] = []
+
+    def drain():
+        while chunk := os.read(read_end, 1 << 16):
+            chunks.append(chunk)
+
+    thread = threading.Thread(target=drain, name="osmap-encode", daemon=True)
+    thread.start()
+    try:
+        write(f"/dev/fd/{write_end}")
+    finally:
+        os.close(write_end)
+        thread.join()
+        os.close(read_end)
+    return b"".join(chunks)
 
 
 # The last bytes of a complete file: a writer that lost its tail to a full disk fails here.
