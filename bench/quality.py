@@ -451,7 +451,8 @@ def section(results: list[Result], outdir: Path, elapsed: float, quick: bool,
     """The Markdown section for BENCHMARKS.md."""
     out = ["## Quality: development exemplars scored by texmetrics",
            f"_{common.stamp()}; reproduce with `{COMMAND}{' --quick' if quick else ''}`"
-           f"; section took {elapsed / 60:.1f} min._",
+           f"; section took {elapsed / 60:.1f} min; load average (1 min) at the end: "
+           f"{common.load_average()} (the scores do not depend on it; the times do)._",
            f"Library calls (`synthesize`, seed {SEED}), outputs written as 8-bit PNG to "
            f"`{outdir}/<variant>/<name>.png` and scored from the file by the independent meter "
            f"`{common.shared_rel(common.TEXMETRICS)} --json` (lower is better; scale 1 is "
