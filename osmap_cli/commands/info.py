@@ -39,7 +39,8 @@ def info_command(path: str, as_json: bool, command_only: bool) -> None:
 
     \b
     FILE is an image osmap wrote (PNG text chunks, EXR header, TIFF/JPEG
-    description) or a NRRD volume ("osmap:KEY:=VALUE" fields). The command
+    description), a NRRD volume ("osmap:KEY:=VALUE" fields) or a mesh osmap
+    carve wrote (glTF asset extras, OBJ/MTL/PLY comments). The command
     names the input files as they were named (no folders): run it where they
     are. A file without osmap metadata is an error (exit 1).
     """
@@ -76,7 +77,7 @@ def _is_json(text: str) -> bool:
 
 
 def read_provenance(path: str) -> dict[str, str]:
-    """The osmap key/value pairs stored in an image or a NRRD file."""
+    """The osmap key/value pairs stored in an image, a NRRD volume or a carved mesh."""
     if os.path.isdir(path):
         raise OsmapError(f"{path}: is a directory (give one slice file)")
     if not os.path.isfile(path):
@@ -87,6 +88,10 @@ def read_provenance(path: str) -> dict[str, str]:
 
             handle.seek(0)
             return read_nrrd_header(handle, path)[1]
+    if path.lower().endswith((".glb", ".gltf", ".obj", ".mtl", ".ply")):
+        from osmap_cli.carving.meshio import read_mesh_provenance
+
+        return read_mesh_provenance(path)
     if path.lower().endswith(".npy"):
         raise OsmapError(f"{path}: .npy files cannot store metadata (no provenance)")
     from osmap_cli.imageio import read_metadata
@@ -98,6 +103,10 @@ def reproduce_command(meta: dict[str, str], path: str) -> str | None:
     """The command line that writes `path` again (None when the metadata cannot tell)."""
     command = meta.get("command")
     args = shlex.split(meta.get("args", ""))
+    if command == "carve" and "args" in meta:
+        from osmap_cli.carving.job import reproduce
+
+        return reproduce(meta, path)
     if command == "apply" and meta.get("uv") and meta.get("map"):
         return shlex.join(["osmap", "apply", meta["uv"], meta["map"], "-o", path, *args])
     if command not in ("synth", "solid", "inpaint", "tileable") or "args" not in meta:
