@@ -365,18 +365,28 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, y0, y1):
             dst[y, x, 1] = bx
 
 
-def knn_table(feat, lo0, hi0, lo1, hi1, k, stride, exclude):
-    """For every exemplar pixel, the k positions (from a grid of the given stride inside the
-    valid box) with the nearest appearance features, excluding those within `exclude` pixels.
-    Returns int32[h, w, k, 2]; ties are broken by scan order."""
-    out = np.zeros((feat.shape[0], feat.shape[1], k, 2), np.int32)
-    run_bands(_knn_rows, feat.shape[0], feat, lo0, hi0, lo1, hi1, k, stride, exclude, out)
+# Parameters of a k-NN table of similar positions (knn_table).
+#   lo, hi    (int, int)  the box of reference positions (row, col), inclusive
+#   k         int64       positions per pixel
+#   stride    int64       step of the reference grid inside the box
+#   exclude   int64       references within this many pixels of the pixel (both axes) are skipped
+KnnParams = namedtuple("KnnParams", "lo hi k stride exclude")
+
+
+def knn_table(feat, p):
+    """For every exemplar pixel, the p.k positions (from a grid of step p.stride inside the box
+    p.lo..p.hi) with the nearest appearance features, excluding those within p.exclude pixels.
+    Returns int32[h, w, k, 2]; ties are broken by scan order. p: KnnParams."""
+    out = np.zeros((feat.shape[0], feat.shape[1], p.k, 2), np.int32)
+    run_bands(_knn_rows, feat.shape[0], feat, p, out)
     return out
 
 
 @njit(cache=True, nogil=True)
-def _knn_rows(feat, lo0, hi0, lo1, hi1, k, stride, exclude, out, y0, y1):
+def _knn_rows(feat, p, out, y0, y1):
     """knn_table's rows y0 <= y < y1, written into out."""
+    lo0, hi0, lo1, hi1 = p.lo[0], p.hi[0], p.lo[1], p.hi[1]
+    k, stride, exclude = p.k, p.stride, p.exclude
     h, w, nf = feat.shape
     ref_y = np.arange(lo0, hi0 + 1, stride)
     ref_x = np.arange(lo1, hi1 + 1, stride)

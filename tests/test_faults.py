@@ -81,9 +81,25 @@ CASES = [
 ]
 
 
+@pytest.fixture(scope="module")
+def first_outputs(tmp_path_factory):
+    """The outputs of each case's run without a limit, made once for both limits."""
+    made = {}
+
+    def outputs_of(case, args):
+        if case not in made:
+            folder = tmp_path_factory.mktemp("first")
+            first = _osmap(args, folder)
+            assert first.returncode == 0, first.stderr
+            made[case] = _snapshot(folder)
+        return made[case]
+
+    return outputs_of
+
+
 @pytest.mark.parametrize("where", ["middle", "last bytes"])
 @pytest.mark.parametrize("case", CASES, ids=[c[0] for c in CASES])
-def test_full_disk_leaves_the_previous_output(tmp_path, exemplar, case, where):
+def test_full_disk_leaves_the_previous_output(tmp_path, exemplar, first_outputs, case, where):
     _, command, outputs, limited = case
     outputs = [a.format(dir=exemplar.parent) for a in outputs]
     if command == "synth":
@@ -92,8 +108,9 @@ def test_full_disk_leaves_the_previous_output(tmp_path, exemplar, case, where):
         args = ["solid", exemplar, *outputs, *SOLID]
     else:
         args = ["surface", *outputs, *SURFACE]
-    first = _osmap(args, tmp_path)
-    assert first.returncode == 0, first.stderr
+    for name, data in first_outputs(case[0], args).items():  # the previous outputs
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_bytes(data)
     before = _snapshot(tmp_path)
     size = (tmp_path / limited).stat().st_size
     limit = size // 2 if where == "middle" else size - 2
@@ -101,6 +118,36 @@ def test_full_disk_leaves_the_previous_output(tmp_path, exemplar, case, where):
     _assert_clean_failure(done, 1, before, tmp_path)
     assert "cannot write" in done.stderr or "failed to write" in done.stderr \
         or "incomplete" in done.stderr, done.stderr
+
+
+def test_a_jpeg_on_a_full_disk_fails_once_threads_have_run(tmp_path, exemplar):
+    """A pyramid (OpenImageIO's thread pool at work) before a JPEG that does not fit: one
+    error line, not a hang. JPEG used to be encoded in a forked child, where libjpeg's exit()
+    on the failed write waited forever for pool threads that had not been forked (and a killed
+    run left the child running and its temporary file behind)."""
+    args = ["synth", exemplar, "-o", "out.jpg", "--size", "24", "--preset", "fast", "-q"]
+    first = _osmap(args, tmp_path)
+    assert first.returncode == 0, first.stderr
+    before = _snapshot(tmp_path)
+
+    def child():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        limit = (tmp_path / "out.jpg").stat().st_size // 2
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    code = "import sys; from osmap_cli.cli import main; sys.exit(main(sys.argv[1:]))"
+    process = subprocess.Popen([sys.executable, "-c", code, *map(str, args)], cwd=tmp_path,
+                               stderr=subprocess.PIPE, text=True, preexec_fn=child,
+                               start_new_session=True)
+    try:
+        _, err = process.communicate(timeout=300)  # a few seconds unless it hangs
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)  # the run and any child it forked
+        process.communicate()
+        pytest.fail("writing a JPEG to a full disk hung")
+    done = subprocess.CompletedProcess(process.args, process.returncode, "", err)
+    _assert_clean_failure(done, 1, before, tmp_path)
+    assert "out.jpg: cannot write file" in err, err
 
 
 @pytest.mark.parametrize("signame,code", [("SIGTERM", 143), ("SIGHUP", 129), ("SIGINT", 130)])
