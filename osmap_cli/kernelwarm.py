@@ -181,16 +181,6 @@ f 1/1 3/2 2/3\nf 1/4 2/5 4/6\nf 1/7 4/8 3/9\nf 2/10 3/11 4/12
 """
 
 
-def _run_plan_entry(args: list[str], work: str) -> int:
-    from osmap_cli.cli import main
-
-    example = os.path.join(work, "ex.png")
-    mesh = os.path.join(work, "mesh.obj")
-    out = os.path.join(work, f"out-{os.getpid()}")
-    os.makedirs(out, exist_ok=True)
-    return main([a.format(ex=example, mesh=mesh, out=out) for a in args])
-
-
 def _children(jobs: list[tuple[list[str], dict]], workers: int) -> list[str | None]:
     """Run each (argv, env) as a child process, WORKERS at a time; for each, None if it
     succeeded, else the last line it printed on stderr."""
@@ -227,7 +217,7 @@ def _base_env(staging: str | None, generic: bool) -> dict:
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CPU_NAME", "NUMBA_CPU_FEATURES")}
     if staging is not None:
         env["NUMBA_CACHE_DIR"] = staging
-    env.update(OSMAP_KERNELS="host", NUMBA_NUM_THREADS="1")
+    env.update(OSMAP_KERNELS="host", NUMBA_NUM_THREADS="1", OSMAP_QUICK_LOADS="0")
     env[PLAN_ENV] = "1"
     if generic:
         env.update(NUMBA_CPU_NAME="generic", NUMBA_CPU_FEATURES="")
@@ -246,7 +236,6 @@ def run_plan(generic: bool, workers: int | None = None,
     """Run every plan entry in its own process; with STAGING in its own cache folder (a scratch
     NUMBA_CACHE_DIR each, merged later: no two processes write one numba index), else in the
     user's. Returns the scratch root and the names of the entries that failed."""
-    import json
     import tempfile
 
     root = tempfile.mkdtemp(prefix="osmap-warm-")
@@ -259,8 +248,11 @@ def run_plan(generic: bool, workers: int | None = None,
     jobs = []
     for name, args in runs.items():
         env = _base_env(os.path.join(root, "cache", name) if staging else None, generic)
-        argv = [sys.executable, "-m", "osmap_cli.kernelwarm", "plan-entry", work,
-                json.dumps(args)]
+        out = os.path.join(work, f"out-{name}")
+        os.makedirs(out)
+        fields = dict(ex=os.path.join(work, "ex.png"), mesh=os.path.join(work, "mesh.obj"),
+                      out=out)
+        argv = [sys.executable, "-m", "osmap_cli.cli", *(a.format(**fields) for a in args)]
         jobs.append((argv, env))
     results = _children(jobs, workers or _workers())
     return root, [f"{name} ({why})" for name, why in zip(runs, results) if why is not None]
@@ -434,8 +426,6 @@ def _main(argv: list[str]) -> int:
     import json
 
     command, rest = argv[0], argv[1:]
-    if command == "plan-entry":
-        return _run_plan_entry(json.loads(rest[1]), rest[0])
     if command == "host-part":
         return _compile_part(rest[0], json.loads(rest[1]))
     if command == "background":
