@@ -171,7 +171,7 @@ def flag_args(options, baseline) -> list[str]:
     for name in tunables(options):
         value = getattr(options, name)
         if baseline is None or value != getattr(baseline, name):
-            args += [flag(name), number_text(value)]
+            args += [flag(name), value if isinstance(value, str) else number_text(value)]
     return args
 
 

@@ -21,7 +21,7 @@ import shlex
 from osmap_cli import __version__
 
 __all__ = ["fill_args", "header", "image_metadata", "read_provenance", "reproduce_command",
-           "synth_args", "volume_metadata"]
+           "solid_args", "synth_args", "volume_metadata"]
 
 # the plain (not tunable) numeric flags written when they differ from their default
 _PLAIN = ("scale", "orientation", "anisotropy")
@@ -100,16 +100,42 @@ def image_metadata(options, preset: str, exemplar: str, exemplar_shape, args: li
     return meta
 
 
+def solid_args(options, preset: str) -> list[str]:
+    """Canonical `osmap solid` flags (no exemplar, no -o) that resolve to `options` again: the
+    tunables that differ from the built-in preset's table (all of them for another preset)."""
+    from osmap_cli.options import flag_args, number_text
+    from osmap_cli.presets import builtin_names, load_preset
+    from osmap_cli.solid.options import SolidOptions
+
+    defaults = SolidOptions()
+    args = ["--size", f"{options.width}x{options.height}x{options.depth}", "--seed",
+            str(options.seed), "--preset", preset]
+    if options.tileable:
+        args.append("--tileable")
+    if options.quality != defaults.quality:
+        args += ["--quality", options.quality]
+    if options.angles != defaults.angles:
+        args += ["--orientation", ",".join(number_text(a) for a in options.angles)]
+    baseline = (defaults.replace(**load_preset(preset, "solid"))
+                if preset in builtin_names("solid") else None)
+    return args + flag_args(options, baseline)
+
+
 def volume_metadata(options, preset: str, exemplars) -> dict[str, str]:
-    """The metadata of one `osmap solid` output (the keys of `osmap synth`'s that apply)."""
+    """The metadata of one `osmap solid` output (the keys of `osmap synth`'s that apply);
+    three exemplars are the --x, --y and --z ones."""
     names = [os.path.basename(n) for n in exemplars]
-    return {
+    meta = {
         **header("solid"),
         "exemplar": names[0] if len(set(names)) == 1 else ",".join(names),
         "preset": preset,
         "seed": str(options.seed),
         "options": json.dumps(dataclasses.asdict(options), sort_keys=True),
+        "args": shlex.join(solid_args(options, preset)),
     }
+    if len(names) == 3:
+        meta["inputs"] = shlex.join(["--x", names[0], "--y", names[1], "--z", names[2]])
+    return meta
 
 
 def reproduce_command(meta: dict[str, str], path: str) -> str | None:
@@ -124,12 +150,34 @@ def reproduce_command(meta: dict[str, str], path: str) -> str | None:
     role = meta.get("role", "image")
     output = path
     stem, ext = os.path.splitext(path)
-    if role.startswith("with:") and stem.endswith("_" + role[5:]):
+    if command == "solid":
+        output, args = _volume_output(meta, path, args)
+    elif role.startswith("with:") and stem.endswith("_" + role[5:]):
         output = stem[: -len(role[5:]) - 1] + ext
     elif role == "uv":
         output = stem + "_image" + meta.get("image_ext", ".png")
         args += ["--uv-out", path]
     return shlex.join(["osmap", command, *inputs, "-o", output, *args])
+
+
+def _volume_output(meta: dict[str, str], path: str, args: list[str]) -> tuple[str, list[str]]:
+    """(-o, flags) of `osmap solid` for one of its files: a slice names its folder, a preview
+    (a PNG that is neither a slice nor an atlas) is written beside a volume, a NRRD keeps its
+    encoding."""
+    ext = os.path.splitext(path)[1].lower()
+    if "slice" in meta:
+        folder = os.path.dirname(path) or "."
+        return folder, args + (["--format", "exr"] if ext == ".exr" else [])
+    if ext == ".png" and "atlas_grid" not in meta:
+        return os.path.splitext(path)[0] + "_volume.npy", args + ["--preview", path]
+    if ext == ".nrrd":
+        from osmap_cli.solid.volumeio import read_nrrd_header
+
+        with open(path, "rb") as handle:
+            encoding = read_nrrd_header(handle, path)[0].get("encoding", "raw")
+        if encoding != "raw":
+            args = args + ["--nrrd-encoding", encoding]
+    return path, args
 
 
 def read_provenance(path: str) -> dict[str, str]:
