@@ -117,7 +117,8 @@ def validate(options) -> None:
         spec, value = f.metadata["spec"], getattr(options, f.name)
         name = flag(f.name)
         if spec.kind is bool:
-            if not isinstance(value, bool) and type(value).__name__ != "bool_":
+            # numpy's truth values: numpy.bool_ ("bool" since numpy 2)
+            if not isinstance(value, bool) and type(value).__name__ not in ("bool", "bool_"):
                 raise OsmapError(f"{name}: expected true or false, got {value!r}")
         elif spec.kind is str:
             if spec.choices and value not in spec.choices:
