@@ -101,16 +101,6 @@ def test_separable_path_matches_general_path():
     np.testing.assert_allclose(fast.weights, general.weights, atol=1e-5)
 
 
-def test_rotated_orientation_changes_the_result():
-    rng = np.random.default_rng(7)
-    data = rng.random((500, 2))
-    a = OSMap((20, 20), 2, orientation=Orientation.angles([0, 0], [[1, 0.25]] * 2))
-    b = OSMap((20, 20), 2, orientation=Orientation.angles([0.7, 0.7], [[1, 0.25]] * 2))
-    for som in (a, b):
-        som.init_random(data, 0).train(data, 4000, schedule=SCHEDULE, seed=1)
-    assert np.abs(a.weights - b.weights).max() > 0.05
-
-
 def test_anisotropic_kernel_orients_the_gradients():
     """Component 0 may vary only along axis 0, component 1 only along axis 1 (weight 0 across):
     each component ends up nearly constant across its broad direction."""
