@@ -3,6 +3,7 @@ declaration, on a small options class of every kind (independent of the commands
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -11,6 +12,7 @@ import pytest
 from osmap_cli.errors import OsmapError
 from osmap_cli.options import (
     Options,
+    OptionSpec,
     check_number,
     check_preset_value,
     flag,
@@ -39,6 +41,31 @@ class Demo(Options):
     def check_relations(self) -> None:
         if self.sweeps > self.size:
             raise OsmapError("sweeps exceeds size")
+
+
+@dataclass(frozen=True)
+class Wide(Options):
+    """A text tunable first, a long name (wider columns), a huge whole number."""
+
+    mode: str = option("a", help="m", choices=("a", "b"), tunable=True)
+    a_rather_long_tunable_name: float = option(1.0, 0.0, 1e30, "long", tunable=True)
+    count: int = option(2, 0, 10**30, "c", tunable=True)
+
+
+def test_option_declares_a_field_and_its_spec():
+    """Declared here, at test time: option()'s defaults are those of OptionSpec."""
+    @dataclass(frozen=True)
+    class Local(Options):
+        plain: int = option(3)
+        ranged: float = option(0.5, 0.0, 1.0, "r", tunable=True)
+        picked: str = option("x", choices=["x", "y"])
+
+    fields = {f.name: f for f in dataclasses.fields(Local)}
+    assert fields["plain"].default == 3 and Local().ranged == 0.5 and Local().picked == "x"
+    assert fields["plain"].metadata["spec"] == OptionSpec(3, None, None, "", (), False)
+    assert option_spec(Local, "ranged") == OptionSpec(0.5, 0.0, 1.0, "r", (), True)
+    assert option_spec(Local, "picked") == OptionSpec("x", None, None, "", ("x", "y"), False)
+    assert list(tunables(Local)) == ["ranged"]
 
 
 def test_spec_of_a_field_and_its_kind():
@@ -161,7 +188,24 @@ def test_preset_toml_holds_every_tunable_with_its_help():
     assert preset_toml(Demo, "demo", "n", "d", {}).startswith('name = "n"\n')
 
 
+def test_preset_toml_columns_follow_the_longest_key():
+    text = preset_toml(Wide, "w", "n", "d", {"a_rather_long_tunable_name": 10**20,
+                                             "count": 10**20},
+                       header="# TOTAL MAX  \n")
+    assert text.splitlines() == [
+        "# TOTAL MAX  ", 'name = "n"', 'description = "d"', "", "[w]",
+        'mode = "a"'.ljust(36) + "# a, b",
+        "a_rather_long_tunable_name = 1e+20".ljust(36) + "# long",
+        "count = 100000000000000000000".ljust(36) + "# c",
+    ]
+
+
 def test_usage_rows():
+    assert usage_rows(Wide) == [
+        "| `--mode M` | a | a, b | m |",
+        "| `--a-rather-long-tunable-name X` | 1 | 0 to 1e+30 | long |",
+        "| `--count N` | 2 | 0 to 1000000000000000000000000000000 | c |",
+    ]
     assert usage_rows(Demo) == [
         "| `--sweeps N` | 3 | 0 to 20 | sweeps per level |",
         "| `--step-size X` | 1.5 | 0.25 to 8 | step |",
