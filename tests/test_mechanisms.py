@@ -75,6 +75,19 @@ def test_layout_is_made_of_copies_where_the_window_is_local():
     assert max(wide) < 0.25, wide
 
 
+def test_layout_draws_only_the_allowed_positions():
+    """organise(allowed=...) (an atlas of several exemplars) trains on the allowed positions
+    only: 89 % of the layout lies in the allowed half of the exemplar, 52 % without the mask
+    (the coherent targets spill a little over its edge)."""
+    allowed = np.zeros(LEVEL, bool)
+    allowed[:, :8] = True
+    for mask, low, high in ((allowed, 0.8, 1.0), (None, 0.3, 0.7)):
+        pos = organise(LEVEL, MAP, np.eye(2), LO, HI, SynthOptions(), wrap=False, seed=0,
+                       allowed=mask)
+        rows, cols = np.rint(pos).astype(int).transpose(2, 0, 1)
+        assert low < allowed[rows, cols].mean() < high
+
+
 @pytest.mark.parametrize("degrees, anisotropic, isotropic", [(0.0, 0.38, 0.32),
                                                              (30.0, 0.30, 0.25)])
 def test_layout_kernel_is_anisotropic_per_component(degrees, anisotropic, isotropic):

@@ -163,7 +163,8 @@ def test_preset_values_refused(name, value, message):
 
 @pytest.mark.parametrize("value, text", [(True, "true"), (False, "false"), (3, "3"),
                                          (2.0, "2"), (0.1, "0.1"), (1e20, "1e+20"),
-                                         (-4.0, "-4"), (2.5e-7, "2.5e-07"), (1e15, "1000000000000000.0"),
+                                         (-4.0, "-4"), (2.5e-7, "2.5e-07"),
+                                         (1e15, "1000000000000000.0"),
                                          (999999999999999.0, "999999999999999")])
 def test_number_text_reads_back_exactly(value, text):
     assert number_text(value) == text
