@@ -84,6 +84,7 @@ def test_layout_draws_only_the_allowed_positions():
     for mask, low, high in ((allowed, 0.7, 1.0), (None, 0.15, 0.35)):
         pos = organise(LEVEL, MAP, np.eye(2), LO, HI, SynthOptions(), wrap=False, seed=0,
                        allowed=mask)
+        assert pos.shape == (*MAP, 2) and pos.dtype == np.float32
         rows, cols = np.rint(pos).astype(int).transpose(2, 0, 1)
         assert low < allowed[rows, cols].mean() < high
 
