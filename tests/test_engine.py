@@ -133,7 +133,7 @@ def test_local_window_sets_the_scale(window, copies):
     assert appearances(whole.grid_weights()) < 2.0
 
 
-@pytest.mark.parametrize("degrees", [(30.0, 120.0), (60.0, 150.0), (10.0, 100.0)])
+@pytest.mark.parametrize("degrees", [(30.0, 120.0), (10.0, 100.0)])
 def test_each_component_varies_along_its_own_direction(degrees):
     """Orientation.angles with zero weight across P_k: component k of the trained map varies
     only along P_k; its structure tensor points there within a degree."""

@@ -6,6 +6,8 @@ on both."""
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 import texture_stats as ts
@@ -20,7 +22,7 @@ from mechanism_stats import (
 
 from osmap_cli.imageio import read_image
 from osmap_cli.synth import SynthOptions, synthesize
-from osmap_cli.synth.organise import organise
+from osmap_cli.synth.organise import exemplar_positions, organise, search_window
 
 # the coarsest level of a synthesis: a 16 px exemplar level laid out on a map 4x as wide
 LEVEL = (16, 16)
@@ -28,9 +30,30 @@ MAP = (64, 64)
 LO, HI = np.array([2.0, 2.0]), np.array([13.0, 13.0])
 
 
+@functools.cache
+def _layouts(jac: tuple, changes: tuple):
+    opts = SynthOptions().replace(**dict(changes))
+    return [organise(LEVEL, MAP, np.array(jac), LO, HI, opts, wrap=False, seed=seed)
+            for seed in (0, 1)]
+
+
 def _layout(jac, **changes):
-    opts = SynthOptions().replace(**changes)
-    return [organise(LEVEL, MAP, jac, LO, HI, opts, wrap=False, seed=seed) for seed in (0, 1)]
+    """The layouts of seeds 0 and 1 (made once per set of arguments)."""
+    return _layouts(tuple(map(tuple, np.asarray(jac))), tuple(sorted(changes.items())))
+
+
+def test_layout_inputs_and_window():
+    """The layout's inputs are the integer positions of the box [lo, hi]; its window is the
+    exemplar's extent seen through J (times window_scale), at least 1, at most the map."""
+    pos = exemplar_positions([1.5, 2.0], [3.0, 4.5])
+    assert pos.dtype == np.float64
+    assert pos.tolist() == [[2, 2], [2, 3], [2, 4], [3, 2], [3, 3], [3, 4]]
+    assert exemplar_positions([0.0, 5.0], [1.0, 5.0]).tolist() == [[0, 5], [1, 5]]
+    assert search_window((16, 12), (64, 64), np.eye(2), 1.0) == (16, 12)
+    assert search_window((16, 12), (64, 64), np.eye(2) / 2, 1.0) == (32, 24)  # scale 2
+    assert search_window((16, 12), (64, 20), np.eye(2), 1.5) == (24, 18)
+    assert search_window((16, 12), (20, 10), np.eye(2), 1.0) == (16, 10)  # the map's side
+    assert search_window((1, 3), (8, 8), np.eye(2), 0.1) == (1, 1)
 
 
 def test_paper_method_shows_each_item_as_often_as_the_map_holds_windows():
@@ -117,7 +140,7 @@ def test_range_kernel_keeps_the_layout_coherent():
     ("som_sigma_min", 0.6), ("som_steps_per_node", 10.0), ("som_anisotropy", 0.5),
     ("som_range", 4.0), ("window_scale", 0.5)])
 def test_every_layout_tunable_is_read(name, value):
-    default = organise(LEVEL, MAP, np.eye(2), LO, HI, SynthOptions(), wrap=False, seed=0)
+    default = _layout(np.eye(2))[0]
     changed = organise(LEVEL, MAP, np.eye(2), LO, HI, SynthOptions().replace(**{name: value}),
                        wrap=False, seed=0)
     assert not np.array_equal(default, changed)
@@ -166,8 +189,8 @@ def test_scale_option_sizes_the_features(scale, size):
 
 def test_each_refinement_sweep_improves_coherence(samples):
     """One sweep at the finer levels only, or at the coarsest only, lowers the patch distance to
-    the exemplar by a quarter against none (measured 0.0617 -> 0.0444 / 0.0450; one sweep at
-    each: 0.0389), and one more at each lowers it again (0.0314)."""
+    the exemplar by a quarter against none (measured 0.0617 -> 0.0444 / 0.0450), two at each
+    by half (0.0314; one at each: 0.0389)."""
     exemplar = read_image(samples / "cells.png").pixels[:64, :64]
 
     def coherence(sweeps, coarse_sweeps):
@@ -178,4 +201,4 @@ def test_each_refinement_sweep_improves_coherence(samples):
     none = coherence(0, 0)
     assert coherence(1, 0) < 0.85 * none
     assert coherence(0, 1) < 0.85 * none
-    assert coherence(2, 2) < 0.9 * coherence(1, 1) < 0.8 * none
+    assert coherence(2, 2) < 0.65 * none
