@@ -109,6 +109,8 @@ def test_check_number_floats_and_huge_integers():
                       (1.01, "out of range")):
         with pytest.raises(OsmapError, match=text):
             check_number("--ratio", bad, spec)
+    with pytest.raises(OsmapError, match=r"^--ratio: 2 is out of range \(allowed 0.0 to 1.0\)$"):
+        check_number("--ratio", 2, spec)  # no `where`: the message starts with the option
     check_number("--ratio", 0.0, spec)
     check_number("--ratio", 1, spec)
     seed = option_spec(Demo, "big_seed")
@@ -180,9 +182,9 @@ def test_flag_args_against_a_baseline_or_all():
 
 def test_preset_toml_holds_every_tunable_with_its_help():
     text = preset_toml(Demo, "demo", "mine", "my preset", {"sweeps": 7, "step_size": 2},
-                       header="# top\n")
+                       header="# MAX\n")
     lines = text.splitlines()
-    assert lines[:5] == ["# top", 'name = "mine"', 'description = "my preset"', "", "[demo]"]
+    assert lines[:5] == ["# MAX", 'name = "mine"', 'description = "my preset"', "", "[demo]"]
     assert lines[5].split("#") == ["sweeps = 7".ljust(28), " sweeps per level"]
     assert lines[6].split("#") == ["step_size = 2.0".ljust(28), " step"]
     assert lines[7].split("#") == ['kind = "a"'.ljust(28), " a, b, c"]
