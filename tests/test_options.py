@@ -190,6 +190,7 @@ def test_preset_toml_holds_every_tunable_with_its_help():
     assert lines[7].split("#") == ['kind = "a"'.ljust(28), " a, b, c"]
     assert text.endswith("\n") and len(lines) == 8
     assert preset_toml(Demo, "demo", "n", "d", {}).startswith('name = "n"\n')
+    assert "\nstep_size = 2.5 " in preset_toml(Demo, "demo", "n", "d", {"step_size": 2.5})
 
 
 def test_preset_toml_columns_follow_the_longest_key():
