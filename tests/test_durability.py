@@ -162,3 +162,79 @@ def test_a_file_system_that_cannot_sync_directories_is_not_an_error(run_cli, pre
     assert result.code == 0, result.err
     assert not list(tmp_path.rglob(".osmap-*"))
     assert _snapshot(tmp_path)[Path("uv.npy")] != before[Path("uv.npy")]
+
+
+# ---------------------------------------------------------------------------------------------
+# the transaction itself (osmap_cli.output), without a command around it
+
+
+def _write_text(text):
+    def write(temp):
+        with open(temp, "w") as handle:
+            handle.write(text)
+    return write
+
+
+def _write_folder(names):
+    def write(temp):
+        for name in names:
+            Path(temp, name).write_text(name)
+    return write
+
+
+def test_a_folder_output_replaces_the_previous_folder(tmp_path):
+    from osmap_cli.output import write_atomically
+
+    write_atomically(str(tmp_path / "vol"), _write_folder(["a", "b"]), folder=True)
+    write_atomically(str(tmp_path / "vol"), _write_folder(["c"]), folder=True)
+    assert sorted(os.listdir(tmp_path)) == ["vol"]
+    assert sorted(os.listdir(tmp_path / "vol")) == ["c"]
+
+
+def test_a_link_as_target_is_replaced_and_put_back_on_failure(tmp_path, monkeypatch):
+    """A symbolic link (to a folder) where a file goes: the link itself is replaced; when the
+    commit fails the link is back, still a link."""
+    from osmap_cli.errors import OsmapError
+    from osmap_cli.output import write_atomically
+
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "out.txt").symlink_to(tmp_path / "elsewhere")
+    with monkeypatch.context() as patch:
+        _fail_fsync(patch, errno.EIO, directories=True)
+        with pytest.raises(OsmapError, match=r"out\.txt: cannot write file \(Input/output"):
+            write_atomically(str(tmp_path / "out.txt"), _write_text("new"))
+    assert (tmp_path / "out.txt").is_symlink() and (tmp_path / "elsewhere").is_dir()
+    assert sorted(os.listdir(tmp_path)) == ["elsewhere", "out.txt"]
+    write_atomically(str(tmp_path / "out.txt"), _write_text("new"))
+    assert not (tmp_path / "out.txt").is_symlink() and (tmp_path / "out.txt").read_text() == "new"
+    assert sorted(os.listdir(tmp_path)) == ["elsewhere", "out.txt"]
+
+
+@pytest.mark.parametrize("raised, message", [
+    (OSError("disk gone"), "o.txt: cannot write file (disk gone)"),
+    (OSError(errno.ENOSPC, "No space left on device"),
+     "o.txt: cannot write file (No space left on device)"),
+    (ValueError("bad pixels"), "o.txt: failed to write (ValueError: bad pixels)"),
+])
+def test_a_writer_failure_names_the_target(tmp_path, raised, message):
+    from osmap_cli.errors import OsmapError
+    from osmap_cli.output import write_atomically
+
+    def write(temp):
+        Path(temp).write_text("half")
+        raise raised
+
+    with pytest.raises(OsmapError) as info:
+        write_atomically(str(tmp_path / "o.txt"), write)
+    assert str(info.value) == f"{tmp_path}/{message}"
+    assert os.listdir(tmp_path) == []
+
+
+def test_an_incomplete_write_is_an_error(tmp_path, monkeypatch):
+    from osmap_cli import output
+    from osmap_cli.errors import OsmapError
+
+    monkeypatch.setattr(output.os.path, "getsize", lambda path: 3)
+    with pytest.raises(OsmapError) as info:
+        output.write_bytes(str(tmp_path / "f.bin"), b"12345")
+    assert str(info.value) == f"{tmp_path / 'f.bin'}: incomplete write (3 of 5 bytes)"
