@@ -14,12 +14,13 @@ OSMAP = $(VENV)/bin/osmap
 STAMP = $(VENV)/.osmap-installed
 
 .DEFAULT_GOAL := help
-.PHONY: help venv demo test bench lint clean distclean
+.PHONY: help venv demo test bench mutants lint clean distclean
 
 help:
 	@echo "make demo       set up $(VENV) and synthesize two samples into out/"
 	@echo "make test       set up $(VENV) and run the tests"
 	@echo "make bench      set up $(VENV) and run the benchmarks (writes BENCHMARKS.md)"
+	@echo "make mutants    set up $(VENV) and run mutation testing (slow; outside CI)"
 	@echo "make lint       ruff check ."
 	@echo "make venv       only create $(VENV) and install osmap (editable, dev tools, dask cluster)"
 	@echo "make clean      remove out/ and caches; make distclean also removes $(VENV)"
@@ -53,11 +54,21 @@ bench: venv
 	$(PY) -m pip install --quiet minisom
 	$(PY) bench/run.py
 
+# Mutation testing (docs/testing.md): mutmut is installed here, not as a test dependency. It
+# mutates the modules where bugs are silent and runs the test files aimed at them (the
+# [tool.mutmut] table of pyproject.toml); MUTANTS picks which mutants (of engine.py, the schedule).
+MUTANTS ?= osmap_cli.output.* osmap_cli.provenance.* osmap_cli.options.* osmap_cli.batch.* \
+	osmap_cli.engine.xǁScheduleǁ* osmap_cli.synth.organise.*
+mutants: venv
+	$(PY) -m pip install --quiet "mutmut==3.8.1"
+	nice -n 10 $(VENV)/bin/mutmut run $(foreach p,$(MUTANTS),'$(p)')
+	$(PY) tests/mutation_report.py $(foreach p,$(MUTANTS),'$(p)')
+
 lint: venv
 	$(PY) -m ruff check .
 
 clean:
-	rm -rf out build dist .pytest_cache .ruff_cache *.egg-info kernels/portable-cache
+	rm -rf out build dist mutants .pytest_cache .ruff_cache *.egg-info kernels/portable-cache
 	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
 
 distclean: clean

@@ -117,7 +117,8 @@ def validate(options) -> None:
         spec, value = f.metadata["spec"], getattr(options, f.name)
         name = flag(f.name)
         if spec.kind is bool:
-            if not isinstance(value, bool) and type(value).__name__ != "bool_":
+            # numpy's truth values: numpy.bool_ ("bool" since numpy 2)
+            if not isinstance(value, bool) and type(value).__name__ not in ("bool", "bool_"):
                 raise OsmapError(f"{name}: expected true or false, got {value!r}")
         elif spec.kind is str:
             if spec.choices and value not in spec.choices:
@@ -171,7 +172,7 @@ def flag_args(options, baseline) -> list[str]:
     for name in tunables(options):
         value = getattr(options, name)
         if baseline is None or value != getattr(baseline, name):
-            args += [flag(name), number_text(value)]
+            args += [flag(name), value if isinstance(value, str) else number_text(value)]
     return args
 
 

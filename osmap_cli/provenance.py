@@ -52,13 +52,18 @@ def image_metadata(options: dict, preset: str, exemplar: str, exemplar_shape, ar
     return meta
 
 
-def volume_metadata(options, preset: str, exemplars) -> dict[str, str]:
-    """The metadata of one `osmap solid` output (the keys of `osmap synth`'s that apply)."""
+def volume_metadata(options, preset: str, exemplars, args: list[str]) -> dict[str, str]:
+    """The metadata of one `osmap solid` output (the keys of `osmap synth`'s that apply);
+    three exemplars are the --x, --y and --z ones; args: the canonical flags."""
     names = [os.path.basename(n) for n in exemplars]
-    return {
+    meta = {
         **header("solid"),
         "exemplar": names[0] if len(set(names)) == 1 else ",".join(names),
         "preset": preset,
         "seed": str(options.seed),
         "options": json.dumps(dataclasses.asdict(options), sort_keys=True),
+        "args": shlex.join(args),
     }
+    if len(names) == 3:
+        meta["inputs"] = shlex.join(["--x", names[0], "--y", names[1], "--z", names[2]])
+    return meta

@@ -115,9 +115,31 @@ def reproduce_command(meta: dict[str, str], path: str) -> str | None:
     role = meta.get("role", "image")
     output = path
     stem, ext = os.path.splitext(path)
-    if role.startswith("with:") and stem.endswith("_" + role[5:]):
+    if command == "solid":
+        output, args = _volume_output(path, meta, args)
+    elif role.startswith("with:") and stem.endswith("_" + role[5:]):
         output = stem[: -len(role[5:]) - 1] + ext
     elif role == "uv":
         output = stem + "_image" + meta.get("image_ext", ".png")
         args += ["--uv-out", path]
     return shlex.join(["osmap", command, *inputs, "-o", output, *args])
+
+
+def _volume_output(path: str, meta: dict[str, str], args: list[str]) -> tuple[str, list[str]]:
+    """(-o, flags) of `osmap solid` for one of its files: a slice names its folder, a preview
+    (a PNG that is neither a slice nor an atlas) is written beside a volume, a NRRD keeps its
+    encoding."""
+    ext = os.path.splitext(path)[1].lower()
+    if "slice" in meta:
+        folder = os.path.dirname(path) or "."
+        return folder, args + (["--format", "exr"] if ext == ".exr" else [])
+    if ext == ".png" and "atlas_grid" not in meta:
+        return os.path.splitext(path)[0] + "_volume.npy", args + ["--preview", path]
+    if ext == ".nrrd":
+        from osmap_cli.solid.volumeio import read_nrrd_header
+
+        with open(path, "rb") as handle:
+            encoding = read_nrrd_header(handle, path)[0].get("encoding", "raw")
+        if encoding != "raw":
+            args = args + ["--nrrd-encoding", encoding]
+    return path, args
