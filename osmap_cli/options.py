@@ -159,6 +159,8 @@ def number_text(value) -> str:
     """The shortest text that reads back as exactly `value` (flags, TOML)."""
     if isinstance(value, bool):
         return "true" if value else "false"
+    if isinstance(value, str):  # a free-text option (no choices)
+        return value
     if isinstance(value, int):
         return str(value)
     value = float(value)
@@ -187,7 +189,8 @@ def preset_toml(cls, table: str, name: str, description: str, values: dict,
     for key, spec in specs.items():
         value = values.get(key, getattr(defaults, key))
         if spec.kind is str:
-            lines.append(f'{key} = "{value}"'.ljust(width) + f"# {', '.join(spec.choices)}")
+            lines.append(f'{key} = "{value}"'.ljust(width)
+                         + f"# {', '.join(spec.choices) or spec.help}")
             continue
         text = number_text(float(value) if spec.kind is float else value)
         if spec.kind is float and "." not in text and "e" not in text:

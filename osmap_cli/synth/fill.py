@@ -34,6 +34,7 @@ from osmap_cli.synth.pipeline import (
     uniform_jacobian,
     valid_box,
 )
+from osmap_cli.synth.regular import atlas_phase, band_phase, resolve_lattice
 from osmap_cli.synth.render import render
 from osmap_cli.texture.levels import level_count
 from osmap_cli.texture.pyramid import build_pyramid
@@ -197,9 +198,23 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
         # pre-fill, which blurs the features of the kept pixels around the hole
         return _paste(level_image, holes[level], render(pyramid[level], pos))
 
+    # the image's lattice (a hole: read from the kept pixels); the fill keeps it, the bands of
+    # a tileable photo take up the fraction of a period its size leaves (band_phase)
+    lattice = resolve_lattice(opts.lattice, image, None if source_free else ~free)
+
+    def lattice_maps(level):
+        phases = out = None
+        if atlas is not None:
+            phases = atlas_phase(lattice, [source, *exemplars], atlas.origins,
+                                 pyramid[level].shape[:2], level)
+        if wrap:
+            out = band_phase(lattice, 2 ** level, holes[level])
+        return phases, out
+
     loop = LevelLoop(pyramid, [h.shape for h in holes], uniform_jacobian(np.eye(2)), bounds,
                      start, constraint=constraint, rounds=1 if source_free else 2,
-                     restyle=restyle)
+                     restyle=restyle, lattice=lattice, lattice_maps=lattice_maps,
+                     pinned_phase=True)
     pos, jac_field, finest = run_levels(loop, opts, progress)
     forbidden = finest.forbidden
     if not source_free and forbidden[np.rint(pos[free]).astype(int)[:, 0],
@@ -209,7 +224,7 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
     if atlas is None:
         pixels = render_fill(lambda px, blend: render(px, pos, jac_field, wrap, blend), image,
                              free, source_free, opts.blend)
-        return SynthResult(pixels, pos)
+        return SynthResult(pixels, pos, lattice=lattice)
 
     def draw(px, blend):
         # the image's pixels (as render_fill passes them) in the atlas, then rendered
@@ -219,7 +234,7 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
 
     pixels = render_fill(draw, image, free, source_free, opts.blend)
     index, local = atlas.locate(pos)
-    return SeveralResult(pixels, pos, None, index - 1, local)  # -1: the image itself
+    return SeveralResult(pixels, pos, None, lattice, index - 1, local)  # -1: the image itself
 
 
 def _check_exemplars(image: np.ndarray, exemplars, source_free: bool) -> None:

@@ -35,6 +35,8 @@ MIN_PEAK = 0.1
 MIN_CONTRAST = 0.08
 # a divisor t / m of a period is the period itself when r(t / m) reaches this share of r(t)
 DIVISOR_SHARE = 0.7
+# exemplars are read from a central square this large at most
+ANALYSIS_SIZE = 256
 # a period shorter than this (pixels) is not a lattice the synthesis can follow
 MIN_PERIOD = 4.0
 
@@ -94,24 +96,31 @@ def parse_lattice(text: str) -> Lattice:
     return Lattice(tuple(vectors))
 
 
-def autocorrelation(image: np.ndarray) -> np.ndarray:
+def autocorrelation(image: np.ndarray, known: np.ndarray | None = None) -> np.ndarray:
     """The normalised autocorrelation r[dy + h, dx + w] of image (h, w[, C]) (each channel's
     mean removed, channels summed, each displacement normalised by its overlap; r[h, w] = 1):
-    float64 (2h, 2w)."""
+    float64 (2h, 2w). known (bool (h, w), optional): only these pixels count (a hole's are
+    left out)."""
     x = np.asarray(image, np.float64)
     if x.ndim == 2:
         x = x[..., None]
     h, w, _ = x.shape
-    x = x - x.reshape(-1, x.shape[2]).mean(0)
-    variance = float((x * x).sum(axis=2).mean())
+    weight = np.ones((h, w)) if known is None else np.asarray(known, np.float64)
+    if weight.sum() < 1:
+        return np.zeros((2 * h, 2 * w))
+    mean = (x * weight[..., None]).reshape(-1, x.shape[2]).sum(0) / weight.sum()
+    x = (x - mean) * weight[..., None]
+    variance = float((x * x).sum() / weight.sum())
     power = np.zeros((2 * h, w + 1))
     for c in range(x.shape[2]):
         f = np.fft.rfft2(x[..., c], (2 * h, 2 * w))
         power += (f * np.conj(f)).real
     total = np.fft.irfft2(power, (2 * h, 2 * w))
-    ones = np.fft.rfft2(np.ones((h, w)), (2 * h, 2 * w))
+    ones = np.fft.rfft2(weight, (2 * h, 2 * w))
     overlap = np.fft.irfft2((ones * np.conj(ones)).real, (2 * h, 2 * w))
-    r = total / np.maximum(np.rint(overlap), 1.0) / max(variance, 1e-12)
+    # displacements that fewer than an eighth of the pixels see are not read
+    enough = np.rint(overlap) >= max(1.0, weight.sum() / 8)
+    r = np.where(enough, total / np.maximum(np.rint(overlap), 1.0), 0.0) / max(variance, 1e-12)
     return np.fft.fftshift(r)
 
 
@@ -278,13 +287,21 @@ def _primitive(t, value_of) -> np.ndarray:
     return t
 
 
-def find_lattice(exemplar: np.ndarray) -> Lattice | None:
-    """The exemplar's lattice (float (h, w[, C])), or None when it has none worth keeping."""
+def find_lattice(exemplar: np.ndarray, known: np.ndarray | None = None) -> Lattice | None:
+    """The exemplar's lattice (float (h, w[, C])), or None when it has none worth keeping.
+    known (bool (h, w), optional): the pixels to read it from (an image with a hole). A
+    larger exemplar is read from its central ANALYSIS_SIZE square (periods up to half that
+    long; the autocorrelation of a whole photo would cost more than the synthesis)."""
     image = np.asarray(exemplar, np.float64)
+    h, w = image.shape[:2]
+    y0, x0 = max(0, (h - ANALYSIS_SIZE) // 2), max(0, (w - ANALYSIS_SIZE) // 2)
+    image = image[y0:y0 + ANALYSIS_SIZE, x0:x0 + ANALYSIS_SIZE]
+    if known is not None:
+        known = np.asarray(known, bool)[y0:y0 + ANALYSIS_SIZE, x0:x0 + ANALYSIS_SIZE]
     h, w = image.shape[:2]
     if min(h, w) < 4 * MIN_PERIOD:
         return None
-    r = autocorrelation(image)
+    r = autocorrelation(image, known)
     corr = _Correlation(r)
     reach = min(h, w) / 2
     peaks = [(v, np.array(d)) for v, d in _peaks(r, (h // 2, w // 2))]
@@ -383,18 +400,16 @@ def _confirmed(corr: _Correlation, basis, strength: float, shape) -> bool:
     return not further or float(np.mean([corr(v) for v in further])) >= 0.5 * strength
 
 
-def _stripes(corr: _Correlation, reach: float) -> Lattice | None:
-    """Stripes: the direction and period whose profile across them (the correlation averaged
-    along each stripe) is most periodic, when the stripe one period away correlates at
-    MIN_STRENGTH or more somewhere and the profile peaks again at twice the period."""
-    angles = np.radians(np.arange(0.0, 180.0, 1.0))
+def _best_stripes(corr: _Correlation, degrees, us, s, reach: float):
+    """(contrast, period, unit normal) of the most periodic stripe profile over the normals at
+    `degrees`: the profile across the stripes (the correlation averaged over `us` along each)
+    sampled at `s`, contrast its mean at the periods' multiples minus at the half-way points."""
+    angles = np.radians(np.asarray(degrees, np.float64))
     normals = np.stack([np.cos(angles), np.sin(angles)], -1)  # (A, 2)
     alongs = np.stack([-normals[:, 1], normals[:, 0]], -1)
-    us = np.arange(-reach / 2, reach / 2 + 1, 2.0)
-    s = np.arange(0.0, reach + 0.25, 0.5)
     points = (s[None, :, None, None] * normals[:, None, None, :]
               + us[None, None, :, None] * alongs[:, None, None, :])
-    profiles = corr(points).mean(axis=2)  # (A, S): correlation averaged along each stripe
+    profiles = corr(points).mean(axis=2)  # (A, S)
     best = None
     for p in s[int(2 * MIN_PERIOD):len(s) // 2 + 1]:
         ks = np.arange(1, int(reach / p) + 1)
@@ -403,6 +418,20 @@ def _stripes(corr: _Correlation, reach: float) -> Lattice | None:
         i = int(np.argmax(on - off))
         if best is None or on[i] - off[i] > best[0] + 1e-9:
             best = (float(on[i] - off[i]), float(p), normals[i])
+    return best
+
+
+def _stripes(corr: _Correlation, reach: float) -> Lattice | None:
+    """Stripes: the direction and period whose profile across them (the correlation averaged
+    along each stripe) is most periodic, when the stripe one period away correlates at
+    MIN_STRENGTH or more somewhere and the profile peaks again at twice the period."""
+    us = np.arange(-reach / 2, reach / 2 + 1, 4.0)
+    s = np.arange(0.0, reach + 0.25, 0.5)
+    best = _best_stripes(corr, np.arange(0.0, 180.0, 3.0), us, s, reach)
+    if best is not None:  # the angle to half a degree
+        angle = math.degrees(math.atan2(best[2][1], best[2][0])) % 180.0
+        finer = _best_stripes(corr, angle + np.arange(-2.5, 2.75, 0.5), us, s, reach)
+        best = finer if finer is not None and finer[0] >= best[0] else best
     if best is None or best[0] < MIN_CONTRAST:
         return None
     _, p, normal = best

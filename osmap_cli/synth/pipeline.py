@@ -49,8 +49,10 @@ class LevelLoop:
     rounds: refinements per level; round r > 0 computes its features from
     restyle(level, previous round's source image, pos) (a hole matched against its own fill).
     lattice: the exemplar's lattice (osmap_cli.synth.lattice.Lattice, finest level) or None;
-    lattice_phase(level) -> the level's exemplar phase map (an atlas) or None; pinned_phase:
-    the output's lattice phase is 0 (pinned pixels at their own positions), else the field's.
+    out_lattice: the output's when it differs (tileable: osmap_cli.synth.regular.wrapped);
+    lattice_maps(level) -> (exemplar phase map, output phase map), each None when not needed
+    (osmap_cli.synth.regular.level_lattice); pinned_phase: the output's lattice phase is 0
+    (pinned pixels at their own positions), else the field's.
     """
 
     pyramid: list
@@ -63,7 +65,8 @@ class LevelLoop:
     rounds: int = 1
     restyle: Callable | None = None
     lattice: Lattice | None = None
-    lattice_phase: Callable | None = None
+    out_lattice: Lattice | None = None
+    lattice_maps: Callable | None = None
     pinned_phase: bool = False
 
 
@@ -96,9 +99,10 @@ def run_levels(loop: LevelLoop, opts: SynthOptions, progress=None):
             sweeps = opts.sweeps
         lattice = None
         if loop.lattice is not None:
-            phases = None if loop.lattice_phase is None else loop.lattice_phase(level)
+            maps = (None, None) if loop.lattice_maps is None else loop.lattice_maps(level)
             lattice = level_lattice(loop.lattice, 2 ** level, jac_field[0, 0], pos, lo, hi,
-                                    phases, loop.pinned_phase)
+                                    *maps, pinned_phase=loop.pinned_phase,
+                                    output=loop.out_lattice)
             if lattice is not None:
                 pos = lattice.snap(pos, lo, hi)
                 if constraint is not None:
@@ -201,10 +205,13 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
                           guide_levels(target_guide, out_shape, levels)))
     pyramid = build_pyramid(exemplar, levels)
     shapes = level_shapes(out_shape, levels)
+    out_lattice = None
     if lattice is not None and opts.tileable:
-        lattice = wrapped(lattice, out_shape, jac)
+        out_lattice = wrapped(lattice, out_shape, jac, opts.max_copy or min(out_shape))
+        lattice = lattice if out_lattice is not None else None
     pos, jac_field, _ = run_levels(LevelLoop(pyramid, shapes, jacobian_field, bounds, start,
-                                             guides=guides, lattice=lattice), opts, progress)
+                                             guides=guides, lattice=lattice,
+                                             out_lattice=out_lattice), opts, progress)
     pixels = render(exemplar, pos, jac_field, *render_settings(opts))
     return SynthResult(pixels, pos, None if fields is None else jac_field, lattice)
 

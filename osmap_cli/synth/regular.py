@@ -25,22 +25,30 @@ from osmap_cli.errors import OsmapError
 from osmap_cli.synth.lattice import Lattice, find_lattice, parse_lattice
 from osmap_kernels.lattice import LatticeParams, phase_sums, snap_field
 
-__all__ = ["LATTICE_MIN_PERIOD", "LevelLattice", "atlas_phase", "describe", "level_lattice",
-           "resolve_lattice", "wrapped"]
+__all__ = ["LATTICE_MIN_PERIOD", "LevelLattice", "atlas_phase", "band_phase", "describe",
+           "level_lattice", "resolve_lattice", "wrapped"]
 
 # a level follows the lattice once its shortest period spans this many exemplar pixels (at
 # coarser levels a period is a pixel or two, which integral positions cannot resolve)
 LATTICE_MIN_PERIOD = 3.0
+# where the output's lattice differs from the exemplar's (a tileable output, a tileable photo's
+# bands), a copy continues while within this many pixels of the output's phase
+DRIFT_KEEP = 1.0
+# a tileable output keeps the lattice when fitting a whole number of periods across it moves
+# copies of --max-copy pixels by at most this much (exemplar pixels) against one another
+WRAP_DRIFT = 0.5
 _NO_PHASE = np.zeros((1, 1, 2), np.float32)
 
 
-def resolve_lattice(value: str, exemplar: np.ndarray) -> Lattice | None:
-    """The lattice `--lattice VALUE` asks for: auto (read from the exemplar, None when it has
-    none), off (None) or the vectors given (DX,DY[:DX,DY])."""
+def resolve_lattice(value: str, exemplar: np.ndarray, known: np.ndarray | None = None
+                    ) -> Lattice | None:
+    """The lattice `--lattice VALUE` asks for: auto (read from the exemplar, from its `known`
+    pixels when given; None when it has none), off (None) or the vectors given
+    (DX,DY[:DX,DY])."""
     if value == "off":
         return None
     if value == "auto":
-        return find_lattice(exemplar)
+        return find_lattice(exemplar, known)
     try:
         return parse_lattice(value)
     except ValueError as exc:
@@ -57,18 +65,24 @@ def describe(lattice: Lattice | None) -> str:
     return f"2D lattice (--lattice {flag})"
 
 
-def wrapped(lattice: Lattice, out_shape, jac) -> Lattice:
+def wrapped(lattice: Lattice, out_shape, jac, span: float) -> Lattice | None:
     """The lattice nearest `lattice` that a wrapping output of `out_shape` (H, W) holds a
-    whole number of times across each axis (tileable outputs: the wrap line is then a
-    lattice line like any other). jac: the output-to-exemplar Jacobian (2x2)."""
+    whole number of times across each axis (a tileable output: the wrap line is then a
+    lattice line like any other), or None when it strays from `lattice` by more than
+    WRAP_DRIFT exemplar pixels over `span` output pixels (rigid copies of that size would no
+    longer meet in step). jac: the output-to-exemplar Jacobian (2x2)."""
     N = lattice.dual()
-    span = np.asarray(jac, np.float64) @ np.diag(np.asarray(out_shape, np.float64))
-    counts = np.rint(N @ span)
-    if len(lattice.vectors) == 1 and not counts.any():
-        return lattice
-    fitted = counts @ np.linalg.pinv(span)
-    if len(lattice.vectors) == 2 and abs(np.linalg.det(fitted)) < 1e-12:
-        return lattice
+    length = np.asarray(out_shape, np.float64)
+    span_j = np.asarray(jac, np.float64) @ np.diag(length)
+    counts = np.rint(N @ span_j)
+    # cycles the fit adds per output pixel along each axis, times a period, over the span
+    periods = 1.0 / np.hypot(N[:, 0], N[:, 1])
+    drift = np.abs(N @ span_j - counts) / length[None, :] * periods[:, None] * span
+    if float(drift.max()) > WRAP_DRIFT:
+        return None
+    fitted = counts @ np.linalg.pinv(span_j)
+    if np.linalg.matrix_rank(fitted) < len(lattice.vectors):
+        return None
     basis = np.linalg.pinv(fitted)
     return Lattice(tuple(tuple(float(c) for c in basis[:, i]) for i in range(basis.shape[1])),
                    lattice.strength)
@@ -76,25 +90,28 @@ def wrapped(lattice: Lattice, out_shape, jac) -> Lattice:
 
 @dataclass(frozen=True)
 class LevelLattice:
-    """The lattice of one pyramid level: its kernel record and exemplar phase map."""
+    """The lattice of one pyramid level: its kernel record and phase maps."""
 
     params: LatticeParams
-    phase_map: np.ndarray  # float32 (h, w, 2), or (1, 1, 2) zeros for one exemplar
+    maps: tuple  # (exemplar phase map, output phase map): float32 (h, w, 2), (H, W, 2) or (1, 1, 2)
 
     def snap(self, pos: np.ndarray, lo, hi) -> np.ndarray:
         """pos (float32 (H, W, 2)) with every position moved to a consistent one in [lo, hi]."""
-        return snap_field(np.ascontiguousarray(pos, np.float32), self.params, self.phase_map,
+        return snap_field(np.ascontiguousarray(pos, np.float32), self.params, self.maps,
                           float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
 
 
 def level_lattice(lattice: Lattice | None, level_scale: int, jac, pos: np.ndarray, lo, hi,
-                  phase_map: np.ndarray | None = None, pinned_phase: bool = False
+                  phase_map: np.ndarray | None = None, out_map: np.ndarray | None = None,
+                  pinned_phase: bool = False, output: Lattice | None = None
                   ) -> LevelLattice | None:
     """The lattice at a level `level_scale` times coarser than the exemplar, or None before its
     periods are long enough (LATTICE_MIN_PERIOD). jac: the uniform output-to-exemplar
     Jacobian; pos: the level's current positions, whose prevailing phase the output takes
     (pinned_phase: phase 0, the one kept pixels at their own positions have); phase_map:
-    float32 (h, w, 2) exemplar phases (an atlas), None for one exemplar."""
+    float32 (h, w, 2) exemplar phases (an atlas); out_map: float32 (H, W, 2) output phase
+    corrections (cycles); output: the output's own lattice when it differs from the
+    exemplar's (a tileable output: `wrapped`)."""
     if lattice is None:
         return None
     level = lattice.scaled(1.0 / level_scale)
@@ -104,24 +121,52 @@ def level_lattice(lattice: Lattice | None, level_scale: int, jac, pos: np.ndarra
     N = level.dual()
     T = level.basis()
     rank = N.shape[0]
-    G = N @ jac
+    G = (N if output is None else output.scaled(1.0 / level_scale).dual()) @ jac
     N2, T2, G2 = np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2))
     N2[:rank], T2[:, :rank], G2[:rank] = N, T, G
     integral = bool(np.array_equal(jac, np.eye(2)))
+    # copies drift against an output lattice that differs from the exemplar's (or a phase map)
+    keep = DRIFT_KEEP if output is not None or out_map is not None or phase_map is not None \
+        else 0.5
     axis = int(abs(N2[0, 1]) > abs(N2[0, 0]))
-    phases = _NO_PHASE if phase_map is None else np.ascontiguousarray(phase_map, np.float32)
+    maps = tuple(_NO_PHASE if m is None else np.ascontiguousarray(m, np.float32)
+                 for m in (phase_map, out_map))
 
     def record(b0, b1):
         return LatticeParams(rank, *(float(v) for v in N2.ravel()),
                              *(float(v) for v in T2.ravel()), *(float(v) for v in G2.ravel()),
-                             float(b0), float(b1), integral, axis)
+                             float(b0), float(b1), integral, axis, keep)
 
     b = np.zeros(2)
     if not pinned_phase:
-        sums = phase_sums(np.ascontiguousarray(pos, np.float32), record(0.0, 0.0), phases)
+        sums = phase_sums(np.ascontiguousarray(pos, np.float32), record(0.0, 0.0), maps)
         b = np.angle(sums) / (2 * np.pi)
         b[rank:] = 0.0
-    return LevelLattice(record(*b), phases)
+    return LevelLattice(record(*b), maps)
+
+
+def band_phase(lattice: Lattice, level_scale: int, band: np.ndarray) -> np.ndarray:
+    """float32 (H, W, 2): the output phase corrections of a tileable photo's level whose border
+    bands are `band` (bool (H, W), osmap_cli.synth.fill.border_bands): the photo holds a
+    fraction of a period more or less than a whole number across each axis; the bands take it
+    up, half on either side of the wrap line, ramping from 0 where they meet the kept centre,
+    so that the lattice runs on across the wrap line."""
+    H, W = band.shape
+    N = lattice.scaled(1.0 / level_scale).dual()
+    out = np.zeros((H, W, 2), np.float32)
+    for axis, size in ((0, H), (1, W)):
+        span = np.zeros(2)
+        span[axis] = size
+        frac = N @ span - np.rint(N @ span)  # cycles left over across this axis
+        line = band[:, W // 2] if axis == 0 else band[H // 2]
+        width = max(1, int(line.sum()) // 2)
+        ramp = np.zeros(size)
+        ramp[size - width:] = np.arange(width) / (2 * width) + 0.5 / (2 * width)
+        ramp[:width] = np.arange(width) / (2 * width) - 0.5 + 0.5 / (2 * width)
+        shape = (size, 1) if axis == 0 else (1, size)
+        # across the wrap line the phase then runs on: psi(0) - psi(size - 1) = frac + N
+        out[..., :len(frac)] -= (ramp.reshape(shape)[..., None] * frac).astype(np.float32)
+    return out
 
 
 def atlas_phase(lattice: Lattice, exemplars, origins, shape, level: int) -> np.ndarray:
