@@ -119,8 +119,9 @@ def lattice_shift_ok(dy, dx, lp):
 @njit(cache=True)
 def snap_field(pos, lp, maps, lo0, hi0, lo1, hi1):
     """Every position of pos (float32 (H, W, 2)) moved to the nearest consistent one inside
-    [lo, hi] (one within lp.keep pixels of its phase stays) (the snapped one, else the nearest of its lattice neighbours one period either
-    way that is inside; a position with none inside stays). Returns a new field."""
+    [lo, hi]: the snapped one (a position within lp.keep pixels of its phase stays), else the
+    nearest of its lattice neighbours one period either way that is inside; a position with
+    none inside stays. Returns a new field."""
     H, W = pos.shape[0], pos.shape[1]
     out = pos.copy()
     for y in range(H):

@@ -18,7 +18,7 @@ import numpy as np
 
 from osmap_cli.errors import OsmapError
 from osmap_cli.imageio import output_depth
-from osmap_cli.synth.job import UV_DESCRIPTION, SynthJob
+from osmap_cli.synth.job import UV_DESCRIPTION, SynthJob, lattice_meta, verbose_summary
 
 __all__ = ["MODES", "FillJob", "read_mask"]
 
@@ -173,6 +173,7 @@ class FillJob(SynthJob):
             more = ["--border", str(self.border)] if self.border else []
             extra = {"border": str(band)}
         args = fill_args(options, self.preset, self.preset_values, depth, more)
+        extra.update(lattice_meta(result))
 
         def meta(role, more_args=(), more_extra=None):
             return image_metadata(options, self.preset, self.exemplar, image.pixels.shape,
@@ -204,5 +205,5 @@ class FillJob(SynthJob):
             ext = os.path.splitext(self.output)[1].lower()
             stage_image(self.uv_out, uv, 32, ("u", "v"),
                         meta("uv", (), {"uv_channels": UV_DESCRIPTION, "image_ext": ext}))
-        return job._summary(fmt, depth, channels, inputs)
+        return verbose_summary(self, job._summary(fmt, depth, channels, inputs), result)
 

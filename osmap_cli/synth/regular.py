@@ -26,7 +26,7 @@ from osmap_cli.synth.lattice import Lattice, find_lattice, parse_lattice
 from osmap_kernels.lattice import LatticeParams, phase_sums, snap_field
 
 __all__ = ["LATTICE_MIN_PERIOD", "LevelLattice", "atlas_phase", "band_phase", "describe",
-           "level_lattice", "resolve_lattice", "wrapped"]
+           "lattice_text", "level_lattice", "resolve_lattice", "wrapped"]
 
 # a level follows the lattice once its shortest period spans this many exemplar pixels (at
 # coarser levels a period is a pixel or two, which integral positions cannot resolve)
@@ -55,11 +55,18 @@ def resolve_lattice(value: str, exemplar: np.ndarray, known: np.ndarray | None =
         raise OsmapError(f"--lattice {value}: {exc}") from None
 
 
+def lattice_text(lattice: Lattice | None) -> str:
+    """The lattice as provenance records it: 'none', or the vectors as --lattice takes them."""
+    if lattice is None:
+        return "none"
+    return ":".join(f"{v[1]:.2f},{v[0]:.2f}" for v in lattice.vectors)
+
+
 def describe(lattice: Lattice | None) -> str:
     """One phrase for a report: 'none', 'stripes every 12.9 px (--lattice 0.2,12.9)', ..."""
     if lattice is None:
         return "none"
-    flag = ":".join(f"{v[1]:.1f},{v[0]:.1f}" for v in lattice.vectors)
+    flag = lattice_text(lattice)
     if len(lattice.vectors) == 1:
         return f"stripes every {lattice.shortest():.1f} px (--lattice {flag})"
     return f"2D lattice (--lattice {flag})"
