@@ -47,6 +47,16 @@ class Correlation:
         return ((1 - fy) * ((1 - fx) * r[y0, x0] + fx * r[y0, x0 + 1])
                 + fy * ((1 - fx) * r[y0 + 1, x0] + fx * r[y0 + 1, x0 + 1]))
 
+    def peaks_at(self, d) -> bool:
+        """Whether the autocorrelation has a local maximum within a pixel of d."""
+        y = int(round(float(d[0]))) + int(self.centre[0])
+        x = int(round(float(d[1]))) + int(self.centre[1])
+        h, w = self.r.shape
+        if not (2 <= y < h - 2 and 2 <= x < w - 2):
+            return False
+        near = self.r[y - 1:y + 2, x - 1:x + 2].max()
+        return bool(near >= self.r[y - 2:y + 3, x - 2:x + 3].max())
+
 
 def peaks(r: np.ndarray, reach) -> list:
     """[(value, (dy, dx))] local maxima of r outside the central lobe, within `reach` (dy, dx),
@@ -225,27 +235,45 @@ def grid(corr: Correlation, periods, reach: float, shape):
     a, b = reduce(a, b)
     if not confirmed(corr, (a, b), strength, shape):
         return None
-    # the primitive lattice: finer ones (a point between the lattice's points added, itself a
-    # period), the finest of them that is confirmed
-    finest = current = (a, b)
-    for _ in range(4):
-        a, b = current
-        for finer in (a / 2, b / 2, (a + b) / 2, (a - b) / 2, a / 3, b / 3):
-            if np.hypot(*finer) >= MIN_PERIOD and is_period(corr, finer) and \
-                    float(corr(finer)) >= DIVISOR_SHARE * min(float(corr(a)), float(corr(b))):
-                other = a if abs(cross(a, finer)) > 1e-6 else b
-                current = reduce(other, finer)
-                if confirmed(corr, current, strength, shape):
-                    finest = current
-                break
-        else:
-            break
-    a, b = finest
+    a, b = primitive_grid(corr, a, b, strength, shape)
     a, b = reduce(*fit(corr, [a, b], reach))
     if min(np.hypot(*a), np.hypot(*b)) < MIN_PERIOD:
         return None
     vectors = tuple(tuple(round(float(c), 2) for c in upper(v)) for v in (a, b))
     return vectors, round(float(strength), 3)
+
+
+def primitive_grid(corr: Correlation, a, b, strength: float, shape):
+    """The finest confirmed lattice containing the one of a and b: a point a third, a half or
+    a quarter of the way between its points added (a period itself, and an autocorrelation
+    peak), the shortest such point first, for as long as one gives a confirmed lattice."""
+    for _ in range(6):
+        finer = []
+        for m in (2, 3, 4):
+            for i in range(m):
+                for j in range(-(m - 1), m):
+                    if (i or j > 0) and math.gcd(math.gcd(i, abs(j)), m) == 1:
+                        v = (i * a + j * b) / m
+                        if np.hypot(*v) >= MIN_PERIOD and is_period(corr, v) and corr.peaks_at(v) \
+                                and float(corr(v)) >= DIVISOR_SHARE * min(float(corr(a)),
+                                                                          float(corr(b))):
+                            finer.append(v)
+        for v in sorted(finer, key=lambda v: float(np.hypot(*v))):
+            # the lattice of a, b and v: v with a or b, whichever spans the other
+            bases = [reduce(x, v) for x in (a, b) if abs(cross(x, v)) > 1e-6]
+            basis = next((p for p in bases if _spans(p, a) and _spans(p, b)), None)
+            if basis is not None and confirmed(corr, basis, strength, shape):
+                a, b = basis
+                break
+        else:
+            return a, b
+    return a, b
+
+
+def _spans(basis, v) -> bool:
+    """Whether v is an integer combination of the two basis vectors."""
+    coef = np.linalg.solve(np.array(basis).T, v)
+    return bool(np.all(np.abs(coef - np.rint(coef)) < 1e-6))
 
 
 def confirmed(corr: Correlation, basis, strength: float, shape) -> bool:
