@@ -291,7 +291,7 @@ def confirmed(corr: Correlation, basis, strength: float, shape) -> bool:
     for v in (a, b):
         if not is_period(corr, v) or float(corr(v)) < DIVISOR_SHARE * strength:
             return False
-        if float(np.mean(corr(points) - corr(points - v / 2))) < MIN_CONTRAST:
+        if len(points) and float(np.mean(corr(points) - corr(points - v / 2))) < MIN_CONTRAST:
             return False
     further = [a + b, a - b] + [k * v for v in (a, b) for k in range(2, 8)]
     further = [v for v in further if abs(v[0]) <= 0.75 * h and abs(v[1]) <= 0.75 * w]
