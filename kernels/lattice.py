@@ -90,14 +90,13 @@ def lattice_snap(cy, cx, y, x, lp, maps, keep=0.5):
         return cy - ry, cx - rx
     # stripes: move along the axis closest to the normal, by the distance that puts the
     # position on its stripe (normal distance w0 * period; n / |n|^2 = t)
-    if lp.axis == 0:
-        step = w0 / lp.n00
-        if lp.integral:
-            step = np.floor(step + 0.5)
-        return cy - step, cx
-    step = w0 / lp.n01
+    step = w0 / (lp.n00 if lp.axis == 0 else lp.n01)
     if lp.integral:
+        if abs(step) <= keep:
+            return cy, cx
         step = np.floor(step + 0.5)
+    if lp.axis == 0:
+        return cy - step, cx
     return cy, cx - step
 
 
