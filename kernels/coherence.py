@@ -20,9 +20,8 @@ from osmap_kernels.bands import run_bands
 from osmap_kernels.common import EIGHT_NEIGHBOURS, hash_uniform, neighbour, sample
 from osmap_kernels.lattice import NO_LATTICE, lattice_snap
 
-# the phase maps of a lattice of one exemplar, no correction (osmap_kernels.lattice): none
+# the exemplar phase map of a lattice of one exemplar (osmap_kernels.lattice): none
 _NO_PHASE = np.zeros((1, 1, 2), np.float32)
-_NO_MAPS = (_NO_PHASE, _NO_PHASE)
 
 # Parameters of one refinement pass.
 #   radius    int64    neighbourhood half-size (matching window (2r+1)^2 of feature vectors)
@@ -156,7 +155,7 @@ def _gather(src, feat, y, x, p, nb, nb_ok, buf):
 
 
 def refine_pass(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice=NO_LATTICE,
-                maps=_NO_MAPS):
+                phase_map=_NO_PHASE):
     """One red-black pass: for pixels of colour p.parity, write the best candidate into dst.
 
     src, dst float32[H, W, 2] (dst must be a copy of src); feat float32[h, w, F] exemplar
@@ -164,19 +163,20 @@ def refine_pass(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice=NO_LA
     similar exemplar positions; occ float32[h, w] occupancy; area float32[H, W] the size of each
     pixel's copy region (copy_region_areas); gex float32[h, w] and gout float32[H, W] the
     exemplar and output guides, read only when p.guide != 0 (unguided: pass (1, 1) zeros).
-    lattice (osmap_kernels.lattice.LatticeParams) and maps (the exemplar and output phase maps,
-    float32 (h, w, 2) and (H, W, 2), or (1, 1, 2)): with a lattice (rank > 0), every
+    lattice (osmap_kernels.lattice.LatticeParams) and phase_map (float32 (h, w, 2), or (1, 1,
+    2) for one exemplar): with a lattice (rank > 0), every
     candidate but the current position is first moved to the nearest position consistent with
     its pixel (lattice_snap) and dropped if that leaves [p.lo, p.hi]; src should be consistent
     already (osmap_kernels.lattice.snap_field).
     Row bands run on osmap_kernels.bands' threads.
     """
     run_bands(_refine_rows, src.shape[0], src, dst, feat, jac, knn, occ, area, gex, gout, p,
-              lattice, maps)
+              lattice, phase_map)
 
 
 @njit(cache=True, nogil=True)
-def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice, maps, y0, y1):
+def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice, phase_map, y0,
+                 y1):
     """refine_pass on rows y0 <= y < y1 (reads src, writes only those rows of dst).
 
     Where the Jacobian is the identity and every position in a pixel's window is integral (the
@@ -315,7 +315,7 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice, map
                     cx = _clamp(np.floor(cx) + (bx - np.floor(bx)), p.lo[1], p.hi[1])
                 if lattice.rank != 0 and c > 0:
                     continuing = c <= n_listed and listed[c - 1, 2] != 0.0
-                    cy, cx = lattice_snap(cy, cx, y, x, lattice, maps,
+                    cy, cx = lattice_snap(cy, cx, y, x, lattice, phase_map,
                                           lattice.keep if continuing else 0.5)
                     if cy < p.lo[0] or cy > p.hi[0] or cx < p.lo[1] or cx > p.hi[1]:
                         continue

@@ -1,14 +1,13 @@
 """Lattice-consistent positions: the kernels that keep a regular texture on its lattice.
 
 A regular exemplar repeats after its period vectors (osmap_cli.synth.lattice). An output pixel
-p shows the texture's lattice at phase psi(p) = G p + b + out_map[p] (cycles, one per period
-vector: G the lattice's dual times the output-to-exemplar Jacobian, b the phase the whole
-output agrees on, out_map a correction, 0 but where a tileable photo's bands take up the
-fraction of a period its size leaves); an exemplar position s has phase N s + phase_map[s]
-(N the dual; phase_map 0 for one exemplar, each exemplar's own phase in an atlas of
-several). Maps of shape (1, 1, 2) hold one value for every pixel. s is *consistent* with p when
-the two phases agree: then the structure at s lands on the output's lattice at p, and copies
-placed at consistent positions keep the lattice across their borders, however far apart.
+p shows the texture's lattice at phase psi(p) = G p + b (cycles, one per period vector: G the
+output lattice's dual times the output-to-exemplar Jacobian, b the phase the whole output
+agrees on); an exemplar position s has phase N s + phase_map[s] (N the dual; phase_map 0 for
+one exemplar, a map of shape (1, 1, 2); each exemplar's own phase in an atlas of several).
+s is *consistent* with p when the two phases agree: then the structure at s lands on the
+output's lattice at p, and copies placed at consistent positions keep the lattice across their
+borders, however far apart.
 
 `lattice_snap` moves a position to the nearest consistent one: by the nearest lattice
 displacement for a 2D lattice (integral positions stay integral), and for stripes along the
@@ -31,8 +30,9 @@ from numba import njit
 #   axis      int64    stripes: 0 or 1, the image axis closest to the normal (snaps move along it)
 #   keep      float64  a position continuing a neighbour's copy stays while within this many
 #                      pixels of its phase (0.5: always the nearest; more where the output's
-#                      lattice differs a little from the exemplar's, a tileable output, so that
-#                      copies drift a little before they break)
+#                      lattice differs a little from the exemplar's, a tileable output, or an
+#                      atlas's exemplars sit at their own phases, so that copies drift a
+#                      little before they break)
 LatticeParams = namedtuple("LatticeParams", "rank n00 n01 n10 n11 t00 t01 t10 t11 g00 g01 g10 "
                                             "g11 b0 b1 integral axis keep")
 
@@ -55,30 +55,28 @@ def _phase_at(phase_map, cy, cx, c):
 
 
 @njit(cache=True, inline="always")
-def lattice_offsets(cy, cx, y, x, lp, maps):
+def lattice_offsets(cy, cx, y, x, lp, phase_map):
     """(w0, w1): the phase differences (cycles, in [-0.5, 0.5)) between exemplar position
-    (cy, cx) and output pixel (y, x), per period vector (w1 = 0 for stripes); maps: (exemplar
-    phase map, output phase map)."""
-    phase_map, out_map = maps
+    (cy, cx) and output pixel (y, x), per period vector (w1 = 0 for stripes)."""
     f0 = (lp.n00 * cy + lp.n01 * cx + _phase_at(phase_map, cy, cx, 0)
-          - (lp.g00 * y + lp.g01 * x + lp.b0 + _phase_at(out_map, y, x, 0)))
+          - (lp.g00 * y + lp.g01 * x + lp.b0))
     w0 = _wrapped(f0)
     w1 = 0.0
     if lp.rank == 2:
         f1 = (lp.n10 * cy + lp.n11 * cx + _phase_at(phase_map, cy, cx, 1)
-              - (lp.g10 * y + lp.g11 * x + lp.b1 + _phase_at(out_map, y, x, 1)))
+              - (lp.g10 * y + lp.g11 * x + lp.b1))
         w1 = _wrapped(f1)
     return w0, w1
 
 
 @njit(cache=True, inline="always")
-def lattice_snap(cy, cx, y, x, lp, maps, keep=0.5):
+def lattice_snap(cy, cx, y, x, lp, phase_map, keep=0.5):
     """The consistent position nearest (cy, cx) for output pixel (y, x) (see the module
     docstring); (cy, cx) itself when it is consistent or lp.rank is 0, or when it lies
     within `keep` pixels of its phase (integral positions)."""
     if lp.rank == 0:
         return cy, cx
-    w0, w1 = lattice_offsets(cy, cx, y, x, lp, maps)
+    w0, w1 = lattice_offsets(cy, cx, y, x, lp, phase_map)
     if lp.rank == 2:
         ry = lp.t00 * w0 + lp.t01 * w1
         rx = lp.t10 * w0 + lp.t11 * w1
@@ -111,12 +109,12 @@ def lattice_shift_ok(dy, dx, lp):
     # lattice whose output phase is 0 everywhere
     flat = LatticeParams(lp.rank, lp.n00, lp.n01, lp.n10, lp.n11, lp.t00, lp.t01, lp.t10,
                          lp.t11, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lp.integral, lp.axis, 0.5)
-    sy, sx = lattice_snap(np.float64(dy), np.float64(dx), 0, 0, flat, (zero, zero))
+    sy, sx = lattice_snap(np.float64(dy), np.float64(dx), 0, 0, flat, zero)
     return abs(sy - dy) < 1e-9 and abs(sx - dx) < 1e-9
 
 
 @njit(cache=True)
-def snap_field(pos, lp, maps, lo0, hi0, lo1, hi1):
+def snap_field(pos, lp, phase_map, lo0, hi0, lo1, hi1):
     """Every position of pos (float32 (H, W, 2)) moved to the nearest consistent one inside
     [lo, hi]: the snapped one (a position within lp.keep pixels of its phase stays), else the
     nearest of its lattice neighbours one period either way that is inside; a position with
@@ -126,7 +124,7 @@ def snap_field(pos, lp, maps, lo0, hi0, lo1, hi1):
     for y in range(H):
         for x in range(W):
             sy, sx = lattice_snap(np.float64(pos[y, x, 0]), np.float64(pos[y, x, 1]), y, x, lp,
-                                  maps, lp.keep)
+                                  phase_map, lp.keep)
             if lo0 <= sy <= hi0 and lo1 <= sx <= hi1:
                 out[y, x, 0] = sy
                 out[y, x, 1] = sx
@@ -149,7 +147,7 @@ def snap_field(pos, lp, maps, lo0, hi0, lo1, hi1):
                     if lp.integral:
                         cy = np.floor(cy + 0.5)
                         cx = np.floor(cx + 0.5)
-                    cy, cx = lattice_snap(cy, cx, y, x, lp, maps)
+                    cy, cx = lattice_snap(cy, cx, y, x, lp, phase_map)
                     if not (lo0 <= cy <= hi0 and lo1 <= cx <= hi1):
                         continue
                     d = (cy - pos[y, x, 0]) ** 2 + (cx - pos[y, x, 1]) ** 2
@@ -161,7 +159,7 @@ def snap_field(pos, lp, maps, lo0, hi0, lo1, hi1):
 
 
 @njit(cache=True)
-def phase_sums(pos, lp, maps):
+def phase_sums(pos, lp, phase_map):
     """sum over the field of exp(2 pi i f) per period vector, f = N s + phase_map[s] - G p (the
     output phase b = 0): the circular mean's numerator of the phase the field's copies sit
     at. complex128 (2,)."""
@@ -170,7 +168,7 @@ def phase_sums(pos, lp, maps):
     for y in range(H):
         for x in range(W):
             w0, w1 = lattice_offsets(np.float64(pos[y, x, 0]), np.float64(pos[y, x, 1]), y, x,
-                                     lp, maps)
+                                     lp, phase_map)
             out[0] += np.exp(2j * np.pi * w0)
             if lp.rank == 2:
                 out[1] += np.exp(2j * np.pi * w1)

@@ -13,7 +13,7 @@ from osmap_cli.errors import OsmapError
 from osmap_cli.imageio import read_image, write_image
 from osmap_cli.synth import SynthOptions, synthesize
 from osmap_cli.synth.atlas import synthesize_several
-from osmap_cli.synth.fill import inpaint, make_tileable
+from osmap_cli.synth.fill import border_bands, inpaint, make_tileable
 from osmap_cli.synth.lattice import Lattice, find_lattice, parse_lattice
 from osmap_cli.synth.regular import level_lattice
 from osmap_kernels.lattice import lattice_offsets, lattice_snap
@@ -85,7 +85,7 @@ def test_snapped_positions_are_consistent_integral_and_stay_put(vectors):
     lattice = Lattice(vectors)
     pos = np.zeros((8, 8, 2), np.float32)
     level = level_lattice(lattice, 1, np.eye(2), pos, (0, 0), (200, 200), pinned_phase=True)
-    lp, maps = level.params, level.maps
+    lp, maps = level.params, level.phase_map
     rng = np.random.default_rng(3)
     for _ in range(300):
         y, x = (int(v) for v in rng.integers(0, 64, 2))
@@ -137,11 +137,15 @@ def test_inpaint_continues_the_lattice_of_the_kept_pixels():
 
 
 def test_tileable_photo_keeps_its_courses_across_the_wrap():
-    photo = bricks(size=96)  # 8 courses, 3.4 bricks: the bands take up the fraction
+    photo = bricks(size=112)  # 112 = 4 bricks of 28, 9.3 courses of 12: the lattice wraps badly
+    assert make_tileable(photo, border=16, options=SynthOptions(seed=1)).lattice is None
+    photo = photo[:96]  # 8 courses: the courses and the bricks wrap in step
     tiled = make_tileable(photo, border=16, options=SynthOptions(seed=1))
     assert tiled.lattice is not None
     wrapped = np.tile(tiled.pixels, (2, 2, 1))
-    assert ts.regularity(photo, wrapped)[1] > 0.8
+    assert ts.regularity(photo, wrapped)[1] > 0.92  # measured 0.99
+    error = _phase_error(tiled.positions, tiled.lattice)[border_bands(photo.shape[:2], 16)]
+    assert np.percentile(error, 95) <= 0.75, np.percentile(error, 95)
 
 
 def test_several_exemplars_meet_in_step():

@@ -209,13 +209,12 @@ def synthesize_several(exemplars, options: SynthOptions, progress=None) -> Sever
         out_lattice = wrapped(lattice, out_shape, jac, opts.max_copy or min(out_shape))
         lattice = lattice if out_lattice is not None else None
 
-    def lattice_maps(level):
-        return atlas_phase(lattice, exemplars, atlas.origins, pyramid[level].shape[:2],
-                           level), None
+    def lattice_phase(level):
+        return atlas_phase(lattice, exemplars, atlas.origins, pyramid[level].shape[:2], level)
 
     loop = LevelLoop(pyramid, shapes, uniform_jacobian(jac), bounds, start,
                      constraint=constraint, lattice=lattice, out_lattice=out_lattice,
-                     lattice_maps=lattice_maps)
+                     lattice_phase=lattice_phase)
     pos, jac_field, _ = run_levels(loop, opts, progress)
     pixels = render(atlas.pixels, pos, jac_field, *render_settings(opts))
     index, local = atlas.locate(pos)

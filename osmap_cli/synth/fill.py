@@ -34,7 +34,7 @@ from osmap_cli.synth.pipeline import (
     uniform_jacobian,
     valid_box,
 )
-from osmap_cli.synth.regular import atlas_phase, band_phase, resolve_lattice
+from osmap_cli.synth.regular import BAND_LEFTOVER, atlas_phase, leftover, resolve_lattice
 from osmap_cli.synth.render import render
 from osmap_cli.texture.levels import level_count
 from osmap_cli.texture.pyramid import build_pyramid
@@ -198,23 +198,19 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
         # pre-fill, which blurs the features of the kept pixels around the hole
         return _paste(level_image, holes[level], render(pyramid[level], pos))
 
-    # the image's lattice (a hole: read from the kept pixels); the fill keeps it, the bands of
-    # a tileable photo take up the fraction of a period its size leaves (band_phase)
+    # the image's lattice (a hole: read from the kept pixels), kept by the fill
     lattice = resolve_lattice(opts.lattice, image, None if source_free else ~free)
+    if lattice is not None and wrap and leftover(lattice, shape) > BAND_LEFTOVER:
+        lattice = None  # its wrap lines would not meet in step: the bands find their own way
 
-    def lattice_maps(level):
-        phases = out = None
-        if atlas is not None:
-            phases = atlas_phase(lattice, [source, *exemplars], atlas.origins,
-                                 pyramid[level].shape[:2], level)
-        if wrap:
-            out = band_phase(lattice, 2 ** level, holes[level])
-        return phases, out
+    def lattice_phase(level):
+        return atlas_phase(lattice, [source, *exemplars], atlas.origins,
+                           pyramid[level].shape[:2], level)
 
     loop = LevelLoop(pyramid, [h.shape for h in holes], uniform_jacobian(np.eye(2)), bounds,
                      start, constraint=constraint, rounds=1 if source_free else 2,
-                     restyle=restyle, lattice=lattice, lattice_maps=lattice_maps,
-                     pinned_phase=True)
+                     restyle=restyle, lattice=lattice,
+                     lattice_phase=None if atlas is None else lattice_phase, pinned_phase=True)
     pos, jac_field, finest = run_levels(loop, opts, progress)
     forbidden = finest.forbidden
     if not source_free and forbidden[np.rint(pos[free]).astype(int)[:, 0],

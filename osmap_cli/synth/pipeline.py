@@ -50,8 +50,8 @@ class LevelLoop:
     restyle(level, previous round's source image, pos) (a hole matched against its own fill).
     lattice: the exemplar's lattice (osmap_cli.synth.lattice.Lattice, finest level) or None;
     out_lattice: the output's when it differs (tileable: osmap_cli.synth.regular.wrapped);
-    lattice_maps(level) -> (exemplar phase map, output phase map), each None when not needed
-    (osmap_cli.synth.regular.level_lattice); pinned_phase: the output's lattice phase is 0
+    lattice_phase(level) -> the level's exemplar phase map (an atlas;
+    osmap_cli.synth.regular.atlas_phase); pinned_phase: the output's lattice phase is 0
     (pinned pixels at their own positions), else the field's.
     """
 
@@ -66,7 +66,7 @@ class LevelLoop:
     restyle: Callable | None = None
     lattice: Lattice | None = None
     out_lattice: Lattice | None = None
-    lattice_maps: Callable | None = None
+    lattice_phase: Callable | None = None
     pinned_phase: bool = False
 
 
@@ -99,9 +99,9 @@ def run_levels(loop: LevelLoop, opts: SynthOptions, progress=None):
             sweeps = opts.sweeps
         lattice = None
         if loop.lattice is not None:
-            maps = (None, None) if loop.lattice_maps is None else loop.lattice_maps(level)
+            phases = None if loop.lattice_phase is None else loop.lattice_phase(level)
             lattice = level_lattice(loop.lattice, 2 ** level, jac_field[0, 0], pos, lo, hi,
-                                    *maps, pinned_phase=loop.pinned_phase,
+                                    phases, pinned_phase=loop.pinned_phase,
                                     output=loop.out_lattice)
             if lattice is not None:
                 pos = lattice.snap(pos, lo, hi)

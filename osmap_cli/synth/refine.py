@@ -82,7 +82,7 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
                 refine_pass(pos, out, feat, jac_field, knn, occ, area, gex, gout, params)
             else:
                 refine_pass(pos, out, feat, jac_field, knn, occ, area, gex, gout, params,
-                            lattice.params, lattice.maps)
+                            lattice.params, lattice.phase_map)
             pos = out if constraint is None else constraint.pin(out)
         if opts.align > 0 and sweep < sweeps - 1:
             # the last sweep settles the borders of the copies' final placement

@@ -25,8 +25,8 @@ from osmap_cli.errors import OsmapError
 from osmap_cli.synth.lattice import Lattice, find_lattice, parse_lattice
 from osmap_kernels.lattice import LatticeParams, phase_sums, snap_field
 
-__all__ = ["LATTICE_MIN_PERIOD", "LevelLattice", "atlas_phase", "band_phase", "describe",
-           "lattice_text", "level_lattice", "resolve_lattice", "wrapped"]
+__all__ = ["BAND_LEFTOVER", "LATTICE_MIN_PERIOD", "LevelLattice", "atlas_phase", "describe",
+           "lattice_text", "leftover", "level_lattice", "resolve_lattice", "wrapped"]
 
 # a level follows the lattice once its shortest period spans this many exemplar pixels (at
 # coarser levels a period is a pixel or two, which integral positions cannot resolve)
@@ -34,6 +34,9 @@ LATTICE_MIN_PERIOD = 3.0
 # where the output's lattice differs from the exemplar's (a tileable output, a tileable photo's
 # bands), a copy continues while within this many pixels of the output's phase
 DRIFT_KEEP = 1.0
+# a tileable photo keeps its lattice when it holds a whole number of periods across each axis
+# to within this many exemplar pixels (the mismatch its wrap line then shows at most)
+BAND_LEFTOVER = 1.0
 # a tileable output keeps the lattice when fitting a whole number of periods across it moves
 # copies of --max-copy pixels by at most this much (exemplar pixels) against one another
 WRAP_DRIFT = 0.5
@@ -100,25 +103,24 @@ class LevelLattice:
     """The lattice of one pyramid level: its kernel record and phase maps."""
 
     params: LatticeParams
-    maps: tuple  # (exemplar phase map, output phase map): float32 (h, w, 2), (H, W, 2) or (1, 1, 2)
+    phase_map: np.ndarray  # float32 (h, w, 2): each exemplar's phase in an atlas; or (1, 1, 2)
 
     def snap(self, pos: np.ndarray, lo, hi) -> np.ndarray:
         """pos (float32 (H, W, 2)) with every position moved to a consistent one in [lo, hi]."""
-        return snap_field(np.ascontiguousarray(pos, np.float32), self.params, self.maps,
+        return snap_field(np.ascontiguousarray(pos, np.float32), self.params, self.phase_map,
                           float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
 
 
 def level_lattice(lattice: Lattice | None, level_scale: int, jac, pos: np.ndarray, lo, hi,
-                  phase_map: np.ndarray | None = None, out_map: np.ndarray | None = None,
-                  pinned_phase: bool = False, output: Lattice | None = None
+                  phase_map: np.ndarray | None = None, pinned_phase: bool = False,
+                  output: Lattice | None = None
                   ) -> LevelLattice | None:
     """The lattice at a level `level_scale` times coarser than the exemplar, or None before its
     periods are long enough (LATTICE_MIN_PERIOD). jac: the uniform output-to-exemplar
     Jacobian; pos: the level's current positions, whose prevailing phase the output takes
     (pinned_phase: phase 0, the one kept pixels at their own positions have); phase_map:
-    float32 (h, w, 2) exemplar phases (an atlas); out_map: float32 (H, W, 2) output phase
-    corrections (cycles); output: the output's own lattice when it differs from the
-    exemplar's (a tileable output: `wrapped`)."""
+    float32 (h, w, 2) exemplar phases (an atlas); output: the output's own lattice when it
+    differs from the exemplar's (a tileable output: `wrapped`)."""
     if lattice is None:
         return None
     level = lattice.scaled(1.0 / level_scale)
@@ -133,11 +135,9 @@ def level_lattice(lattice: Lattice | None, level_scale: int, jac, pos: np.ndarra
     N2[:rank], T2[:, :rank], G2[:rank] = N, T, G
     integral = bool(np.array_equal(jac, np.eye(2)))
     # copies drift against an output lattice that differs from the exemplar's (or a phase map)
-    keep = DRIFT_KEEP if output is not None or out_map is not None or phase_map is not None \
-        else 0.5
+    keep = DRIFT_KEEP if output is not None or phase_map is not None else 0.5
     axis = int(abs(N2[0, 1]) > abs(N2[0, 0]))
-    maps = tuple(_NO_PHASE if m is None else np.ascontiguousarray(m, np.float32)
-                 for m in (phase_map, out_map))
+    phases = _NO_PHASE if phase_map is None else np.ascontiguousarray(phase_map, np.float32)
 
     def record(b0, b1):
         return LatticeParams(rank, *(float(v) for v in N2.ravel()),
@@ -146,34 +146,19 @@ def level_lattice(lattice: Lattice | None, level_scale: int, jac, pos: np.ndarra
 
     b = np.zeros(2)
     if not pinned_phase:
-        sums = phase_sums(np.ascontiguousarray(pos, np.float32), record(0.0, 0.0), maps)
+        sums = phase_sums(np.ascontiguousarray(pos, np.float32), record(0.0, 0.0), phases)
         b = np.angle(sums) / (2 * np.pi)
         b[rank:] = 0.0
-    return LevelLattice(record(*b), maps)
+    return LevelLattice(record(*b), phases)
 
 
-def band_phase(lattice: Lattice, level_scale: int, band: np.ndarray) -> np.ndarray:
-    """float32 (H, W, 2): the output phase corrections of a tileable photo's level whose border
-    bands are `band` (bool (H, W), osmap_cli.synth.fill.border_bands): the photo holds a
-    fraction of a period more or less than a whole number across each axis; the bands take it
-    up, half on either side of the wrap line, ramping from 0 where they meet the kept centre,
-    so that the lattice runs on across the wrap line."""
-    H, W = band.shape
-    N = lattice.scaled(1.0 / level_scale).dual()
-    out = np.zeros((H, W, 2), np.float32)
-    for axis, size in ((0, H), (1, W)):
-        span = np.zeros(2)
-        span[axis] = size
-        frac = N @ span - np.rint(N @ span)  # cycles left over across this axis
-        line = band[:, W // 2] if axis == 0 else band[H // 2]
-        width = max(1, int(line.sum()) // 2)
-        ramp = np.zeros(size)
-        ramp[size - width:] = np.arange(width) / (2 * width) + 0.5 / (2 * width)
-        ramp[:width] = np.arange(width) / (2 * width) - 0.5 + 0.5 / (2 * width)
-        shape = (size, 1) if axis == 0 else (1, size)
-        # across the wrap line the phase then runs on: psi(0) - psi(size - 1) = frac + N
-        out[..., :len(frac)] -= (ramp.reshape(shape)[..., None] * frac).astype(np.float32)
-    return out
+def leftover(lattice: Lattice, shape) -> float:
+    """How far (exemplar pixels) a photo of `shape` (H, W) falls short of or beyond a whole
+    number of periods across either axis: the lattice's mismatch across its wrap lines."""
+    N = lattice.dual()
+    periods = 1.0 / np.hypot(N[:, 0], N[:, 1])
+    cycles = N @ np.diag(np.asarray(shape, np.float64))
+    return float((np.abs(cycles - np.rint(cycles)) * periods[:, None]).max())
 
 
 def atlas_phase(lattice: Lattice, exemplars, origins, shape, level: int) -> np.ndarray:
