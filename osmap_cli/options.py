@@ -206,7 +206,7 @@ def usage_rows(cls) -> list[str]:
     for key, spec in tunables(cls).items():
         if spec.kind is str:
             rows.append(f"| `{flag(key)} M` | {getattr(defaults, key)} | "
-                        f"{', '.join(spec.choices)} | {spec.help} |")
+                        f"{', '.join(spec.choices) or 'text'} | {spec.help} |")
             continue
         metavar = "N" if spec.kind is int else "X"
         default = number_text(getattr(defaults, key))
