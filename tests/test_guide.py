@@ -118,12 +118,24 @@ def test_cli_guided_output_records_and_reproduces_itself(run_cli, workdir):
 
 def test_cli_without_guide_uses_the_exemplar_luminance(run_cli, workdir):
     result = run_cli("synth", "ex.png", "--target-guide", "target.png", "-o", "out.png",
-                     "--size", "32", "--quiet")
+                     "--size", "32", "--uv-out", "uv.exr", "--quiet")
     assert result.code == 0, result.err
-    plain = run_cli("synth", "ex.png", "-o", "plain.png", "--size", "32", "--quiet")
+    plain = run_cli("synth", "ex.png", "-o", "plain.png", "--size", "32", "--uv-out",
+                    "plain_uv.exr", "--quiet")
     assert plain.code == 0
-    assert read_image("out.png").pixels.tobytes() != read_image("plain.png").pixels.tobytes()
     assert "guide_weight" not in run_cli("info", "plain.png").out
+    # the exemplar's blurred luminance at each output pixel's position follows the target (0 on
+    # the left half, 1 on the right): guided 0.20 | 0.61, unguided 0.19 | 0.20
+    luminance = auto_guide(read_image("ex.png").pixels)
+    target = np.zeros((32, 32), np.float32)
+    target[:, 16:] = 1.0
+
+    def mismatch(uv_file):
+        uv = np.rint(read_image(uv_file).pixels).astype(int)  # (u, v) = (column, row)
+        return np.abs(luminance[uv[..., 1], uv[..., 0]] - target).mean()
+
+    guided, unguided = mismatch("uv.exr"), mismatch("plain_uv.exr")
+    assert guided < 0.75 * unguided, (guided, unguided)
 
 
 @pytest.mark.parametrize("args, message", [
