@@ -25,6 +25,9 @@ DIVISOR_SHARE = 0.7
 MIN_PERIOD = 4.0
 # the texture's phase is read over a window this many periods wide (its standard deviation)
 PHASE_WINDOW = 1.5
+# stripes whose slant moves them by less than this many pixels across the image run along its
+# axis (wood_planks_horizontal: 0.7 px; bricks_dark_red, tilted by 0.8 degree: 1.7 px)
+AXIS_SLANT = 1.0
 
 
 class Correlation:
@@ -394,6 +397,42 @@ def drift(image: np.ndarray, vectors, known: np.ndarray | None = None) -> float:
                  + coef[4] * X ** 2)
         worst = max(worst, float(np.ptp(phase)) / (2 * np.pi))
     return worst
+
+
+def level_stripes(image: np.ndarray, t, known: np.ndarray | None = None) -> np.ndarray:
+    """The period vector t of stripes, turned to the image axis closest to their normal when
+    the image shows them running along it.
+
+    The autocorrelation's ridges give the stripes' angle only to a degree or so where stripes
+    differ in width (planks), and a slant of a pixel over 70 px already misplaces copies that
+    far apart by a pixel. The luminance demodulated at the stripes' frequency (over a
+    PHASE_WINDOW-period Gaussian window) turns along the stripes as fast as they slant away
+    from t's direction; when the slant so measured moves them by less than AXIS_SLANT pixels
+    across the image, they run along its axis."""
+    t = np.asarray(t, np.float64)
+    axis = int(abs(t[1]) > abs(t[0]))  # the image axis closest to the stripes' normal
+    if t[1 - axis] == 0:
+        return t
+    gray = np.asarray(image, np.float64)
+    gray = gray.mean(axis=2) if gray.ndim == 3 else gray
+    weight = np.ones(gray.shape) if known is None else np.asarray(known, np.float64)
+    gray = (gray - (gray * weight).sum() / max(weight.sum(), 1.0)) * weight
+    n = t / float(t @ t)  # the dual: cycles per pixel across the stripes
+    rows, cols = np.indices(gray.shape, dtype=np.float64)
+    sigma = PHASE_WINDOW / float(np.hypot(*n))
+    wave = np.exp(-2j * np.pi * (n[0] * rows + n[1] * cols))
+    z = _gaussian(gray * wave.real, sigma) + 1j * _gaussian(gray * wave.imag, sigma)
+    h, w = gray.shape
+    margin = min(int(sigma), h // 4, w // 4)
+    z = z[margin:h - margin, margin:w - margin]
+    # the demodulated phase's mean turn per pixel down the rows and along them (cycles)
+    turn = np.array([np.angle(np.sum(z[1:] * np.conj(z[:-1]))),
+                     np.angle(np.sum(z[:, 1:] * np.conj(z[:, :-1])))]) / (2 * np.pi)
+    along = np.array([-n[1], n[0]]) / float(np.hypot(*n))
+    slanted = n + along * float(turn @ along)  # the turn along the stripes only: their slant
+    if abs(slanted[1 - axis] / slanted[axis]) * gray.shape[1 - axis] >= AXIS_SLANT:
+        return t
+    return np.array([np.hypot(*t), 0.0]) if axis == 0 else np.array([0.0, np.hypot(*t)])
 
 
 def _gaussian(image: np.ndarray, sigma: float) -> np.ndarray:
