@@ -188,3 +188,11 @@ def test_cli_batch_follows_one_target_guide(run_cli, workdir):
         assert record["target_guide"] == "target.png" and "guide" not in record
         assert record["options"]["guide_weight"] == 1.0
     assert Path("b/ex.png").exists() and Path("b/ex_guide.png").exists()
+
+
+@pytest.mark.parametrize("command", ["inpaint", "tileable"])
+def test_fills_take_no_guide_weight(run_cli, workdir, command):
+    # a fill follows no target guide: the flag would do nothing, so the fills do not take it
+    result = run_cli(command, "ex.png", "-o", "out.png", "--guide-weight", "2")
+    assert result.code == 2 and "--guide-weight" in result.err, result.err
+    assert not Path("out.png").exists()
