@@ -393,15 +393,10 @@ def drift(image: np.ndarray, vectors, known: np.ndarray | None = None) -> float:
 
 
 def level_stripes(image: np.ndarray, t, known: np.ndarray | None = None) -> np.ndarray:
-    """The period vector t of stripes, turned to the image axis closest to their normal when
-    the image shows them running along it.
-
-    The autocorrelation's ridges give the stripes' angle only to a degree or so where stripes
-    differ in width (planks), and a slant of a pixel over 70 px already misplaces copies that
-    far apart by a pixel. The luminance demodulated at the stripes' frequency (over a
-    PHASE_WINDOW-period Gaussian window) turns along the stripes as fast as they slant away
-    from t's direction; when the slant so measured moves them by less than AXIS_SLANT pixels
-    across the image, they run along its axis."""
+    """Stripes' period vector t, turned to the image axis nearest their normal when the image
+    shows them level: slanting by less than AXIS_SLANT px across it, as read from the turn of
+    their demodulated phase along them. (The autocorrelation's ridges give the angle only to
+    a degree or so where stripes differ in width, planks; a pixel matters to far copies.)"""
     t = np.asarray(t, np.float64)
     axis = int(abs(t[1]) > abs(t[0]))  # the image axis closest to the stripes' normal
     if t[1 - axis] == 0:
