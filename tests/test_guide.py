@@ -196,3 +196,18 @@ def test_fills_take_no_guide_weight(run_cli, workdir, command):
     result = run_cli(command, "ex.png", "-o", "out.png", "--guide-weight", "2")
     assert result.code == 2 and "--guide-weight" in result.err, result.err
     assert not Path("out.png").exists()
+
+
+def test_a_fill_from_a_preset_file_records_a_command_that_runs(run_cli, workdir):
+    # a preset file's every key is written out as a flag, but for those the fills do not take
+    Path("mine.toml").write_text("[synth]\nguide_weight = 3.0\nwindow_scale = 2.0\n")
+    result = run_cli("tileable", "ex.png", "-o", "out.png", "--preset", "mine.toml",
+                     "--seed", "3", "--quiet")
+    assert result.code == 0, result.err
+    first = Path("out.png").read_bytes()
+    info = run_cli("info", "out.png", "--command")
+    assert info.code == 0 and "--guide-weight" not in info.out, info.out
+    assert "--window-scale" not in info.out and "--seam 1" in info.out, info.out
+    os.remove("out.png")
+    assert run_cli(*shlex.split(info.out.strip())[1:]).code == 0
+    assert Path("out.png").read_bytes() == first
