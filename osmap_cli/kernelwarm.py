@@ -44,13 +44,14 @@ PLAN_ENV = "OSMAP_WARM_PLAN"  # set in the processes that run the plan: no neste
 # The warm-up plan: small runs of the commands, each in its own process, that between them call
 # every kernel with the argument types of a real run (sizes do not change them: a 64x64 synth
 # compiles what 256x256 to 4096x4096 ones use, as do RGBA, gray, 16-bit, --tileable, --uv-out,
-# guides, inpaint, tileable and apply). "{ex}": a 48x48 RGB exemplar, "{mesh}": a tetrahedron
-# with UVs (OBJ), "{out}": a scratch folder.
+# guides, inpaint, tileable and apply). "{ex}": a 48x48 RGB exemplar, "{regular}": a 48x48
+# exemplar with a 2D lattice (its run calls the lattice kernels), "{mesh}": a tetrahedron with
+# UVs (OBJ), "{out}": a scratch folder.
 # Each command runs with its defaults, so a new default method is covered as it lands; other
 # methods (`osmap solid --method legacy`: 70 CPU s of parallel kernels) compile on first use.
 # A new command with kernels of its own needs one line here.
 PLAN = {
-    "synth": ["synth", "{ex}", "-o", "{out}/synth.png", "--size", "64", "--quiet"],
+    "synth": ["synth", "{ex}", "{regular}", "--out-dir", "{out}", "--size", "64", "--quiet"],
     "surface": ["surface", "--shape", "torus", "-o", "{out}/grid.obj", "--grid", "6x6",
                 "--points", "400", "--steps", "600", "--quiet"],
     "solid": ["solid", "{ex}", "-o", "{out}/solid.npy", "--size", "16", "--quiet"],
@@ -162,15 +163,24 @@ def _tell(line: str, words: set) -> None:
 # compiling: the plan (build, or no portable cache) and the portable signatures (this CPU)
 
 
-def _write_exemplar(path: str) -> None:
+def plan_exemplar(regular: bool = False):
+    """float32 (48, 48, 3): the plan's exemplar: blocks of noise, or (REGULAR) a 16x16 tile
+    repeated three times each way, that --lattice auto reads as a 2D lattice."""
     import numpy as np
 
+    rng = np.random.default_rng(0)
+    if regular:
+        pixels = np.tile(rng.random((16, 16, 3)), (3, 3, 1)) * 0.9 + 0.1 * rng.random((48, 48, 3))
+    else:
+        base = rng.random((12, 12, 3)).astype(np.float32)
+        pixels = np.kron(base, np.ones((4, 4, 1), np.float32)) * 0.8 + 0.2 * rng.random((48, 48, 3))
+    return pixels.astype(np.float32)
+
+
+def _write_exemplar(path: str, regular: bool = False) -> None:
     from osmap_cli.imageio import write_image
 
-    rng = np.random.default_rng(0)
-    base = rng.random((12, 12, 3)).astype(np.float32)
-    pixels = np.kron(base, np.ones((4, 4, 1), np.float32)) * 0.8 + 0.2 * rng.random((48, 48, 3))
-    write_image(path, pixels.astype(np.float32), 8)
+    write_image(path, plan_exemplar(regular), 8)
 
 
 # four triangles, each with its own UV triangle: a closed mesh whose UV islands do not overlap
@@ -242,6 +252,7 @@ def run_plan(generic: bool, workers: int | None = None,
     work = os.path.join(root, "work")
     os.makedirs(work)
     _write_exemplar(os.path.join(work, "ex.png"))
+    _write_exemplar(os.path.join(work, "regular.png"), regular=True)
     with open(os.path.join(work, "mesh.obj"), "w") as f:
         f.write(TETRAHEDRON_OBJ)
     runs = dict(PLAN)
@@ -250,8 +261,8 @@ def run_plan(generic: bool, workers: int | None = None,
         env = _base_env(os.path.join(root, "cache", name) if staging else None, generic)
         out = os.path.join(work, f"out-{name}")
         os.makedirs(out)
-        fields = dict(ex=os.path.join(work, "ex.png"), mesh=os.path.join(work, "mesh.obj"),
-                      out=out)
+        fields = dict(ex=os.path.join(work, "ex.png"), regular=os.path.join(work, "regular.png"),
+                      mesh=os.path.join(work, "mesh.obj"), out=out)
         argv = [sys.executable, "-m", "osmap_cli.cli", *(a.format(**fields) for a in args)]
         jobs.append((argv, env))
     results = _children(jobs, workers or _workers())

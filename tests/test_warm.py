@@ -21,6 +21,19 @@ def test_an_empty_cache_is_cold_and_the_repository_cache_is_warm(tmp_path):
     assert warm.cold_groups() == []  # the session fixture compiled them
 
 
+def test_a_regular_exemplars_lattice_kernels_are_warmed_too():
+    from osmap_cli.kernelwarm import PLAN, plan_exemplar
+    from osmap_cli.synth.lattice import find_lattice
+
+    # the build's plan runs a regular exemplar beside the plain one (a lattice run calls them)
+    assert "{ex}" in PLAN["synth"] and "{regular}" in PLAN["synth"]
+    assert find_lattice(plan_exemplar(regular=True)) is not None
+    assert find_lattice(plan_exemplar()) is None
+    # and a development tree's first run compiles them with the organise group
+    names = {kernel.__name__ for kernel, _ in warm._dispatchers("organise")}
+    assert {"snap_field", "phase_sums"} <= names
+
+
 @pytest.fixture
 def cold(monkeypatch):
     """Pretend the cache is cold once; record what would be compiled."""
