@@ -177,6 +177,18 @@ def plan_exemplar(regular: bool = False):
     return pixels.astype(np.float32)
 
 
+def plan_digest() -> str:
+    """sha256 of the plan and its exemplars: a portable cache built by another plan (one that
+    ran fewer kernels) is rebuilt by `portable --if-stale`."""
+    import hashlib
+    import json
+
+    digest = hashlib.sha256(json.dumps(PLAN, sort_keys=True).encode())
+    for regular in (False, True):
+        digest.update(plan_exemplar(regular).tobytes())
+    return digest.hexdigest()
+
+
 def _write_exemplar(path: str, regular: bool = False) -> None:
     from osmap_cli.imageio import write_image
 
@@ -299,7 +311,7 @@ def build_portable(dest: str, log=print) -> int:
             if added:
                 packages.append(package)
                 count += added
-        kernelcache.write_manifest(dest, packages, count)
+        kernelcache.write_manifest(dest, packages, count, plan=plan_digest())
     finally:
         shutil.rmtree(root, ignore_errors=True)
     log(f"osmap: portable kernel cache: {count} signatures of {', '.join(packages)} "
@@ -443,7 +455,8 @@ def _main(argv: list[str]) -> int:
         return _background()
     if command == "portable":  # [--if-stale] DEST
         current = kernelcache.load_manifest(rest[-1])
-        if rest[0] == "--if-stale" and current and kernelcache.portable_usable(current):
+        if (rest[0] == "--if-stale" and current and kernelcache.portable_usable(current)
+                and current.get("plan") == plan_digest()):
             return 0
         build_portable(rest[-1])
         return 0
