@@ -262,3 +262,18 @@ print(getattr(Cache.load_overload, "quick", False), missed, counts.sum(), areas.
     plain = _python(code, OSMAP_QUICK_LOADS="0").split()
     assert quick[0] == "True" and plain[0] == "False"
     assert quick[1:] == plain[1:] and quick[1] == "0"  # loaded from the cache, same results
+
+
+def test_the_console_script_starts_up_without_the_collector_until_the_kernels_load():
+    code = """
+import gc
+from osmap_cli import cli
+cli._start_up_without_gc()
+off = not gc.isenabled()
+import osmap_kernels
+print(off, gc.isenabled(), gc.get_freeze_count() > 0)
+"""
+    assert _python(code) == "True True True"
+    # a process that has the collector on (a library user's, a worker) is left alone
+    code = "import gc, osmap_kernels; print(gc.isenabled(), gc.get_freeze_count())"
+    assert _python(code, OSMAP_START_UP_GC="off") == "True 0"
