@@ -285,6 +285,7 @@ def _closed_stdout() -> int:
 # the console script and its exit
 
 START_UP_GC = "OSMAP_START_UP_GC"  # "off": this process started without the collector
+START_UP_SECONDS = 3.0  # the collector is back on after this long at the latest
 _console = [False]  # running as the console script: stop signals after the command are recorded
 _stopped_after: list = [None]  # a stop signal that arrived after the command
 
@@ -312,12 +313,24 @@ def _start_up_without_gc() -> None:
     OpenImageIO leave hundreds of thousands of long-lived objects, and every full collection
     during their imports walks them all (about 5 % of a 256x256 synth's CPU time). Importing
     osmap_kernels, the last of them, freezes what is loaded by then (never walked again) and
-    turns the collector back on (osmap_kernels.cacheload.start_up_done); a command that never
-    imports it is short or keeps no cycles (its memory measured the same)."""
+    turns the collector back on (osmap_kernels.cacheload.start_up_done); so does a timer after
+    START_UP_SECONDS in a process that never imports it (a Dask client, `osmap surface`)."""
     import gc
+    import threading
 
     gc.disable()
     os.environ[START_UP_GC] = "off"
+    timer = threading.Timer(START_UP_SECONDS, _collector_back_on)
+    timer.daemon = True
+    timer.start()
+
+
+def _collector_back_on() -> None:
+    import gc
+
+    if not gc.isenabled():
+        gc.freeze()
+        gc.enable()
 
 
 def _record_stop(signum, frame) -> None:

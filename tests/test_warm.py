@@ -277,3 +277,17 @@ print(off, gc.isenabled(), gc.get_freeze_count() > 0)
     # a process that has the collector on (a library user's, a worker) is left alone
     code = "import gc, osmap_kernels; print(gc.isenabled(), gc.get_freeze_count())"
     assert _python(code, OSMAP_START_UP_GC="off") == "True 0"
+    # one that never imports the kernels (a Dask client) has it back after a while
+    code = """
+import gc, time
+from osmap_cli import cli
+cli.START_UP_SECONDS = 0.1
+cli._start_up_without_gc()
+off = not gc.isenabled()
+for _ in range(600):
+    if gc.isenabled():
+        break
+    time.sleep(0.05)
+print(off, gc.isenabled())
+"""
+    assert _python(code) == "True True"
