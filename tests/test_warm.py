@@ -22,7 +22,7 @@ def test_an_empty_cache_is_cold_and_the_repository_cache_is_warm(tmp_path):
 
 
 def test_a_regular_exemplars_lattice_kernels_are_warmed_too():
-    from osmap_cli.kernelwarm import PLAN, plan_exemplar
+    from osmap_cli.kernelplan import PLAN, plan_exemplar
     from osmap_cli.synth.lattice import find_lattice
 
     # the build's plan runs a regular exemplar beside the plain one (a lattice run calls them)
