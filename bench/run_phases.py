@@ -1,8 +1,9 @@
 """Where the time of one `osmap synth` process goes, phase by phase.
 
-The process runs as the console script does (kernelwarm.prepare, cli.main, cli.exit_now), with
-clocks around each step of the job (read + check, compute, write) and around every kernel's
-first call (Numba loading it from its cache). Phases, wall and CPU seconds (CPU: all threads):
+The process runs as the console script does (the collector off for start-up, kernelwarm.prepare,
+cli.main, cli.exit_now), with clocks around each step of the job (read + check, compute, write)
+and around every kernel's first call (Numba loading it from its cache). Phases, wall and CPU
+seconds (CPU: all threads):
 
 - imports: click, numpy, Numba (Numba first here; a run imports it at its first kernel);
 - other imports and set-up: osmap, click, OpenImageIO, option parsing;
@@ -38,6 +39,7 @@ from osmap_cli import cli, kernelwarm
 cli._single_threaded_blas()  # as cli.run() does
 os.environ.setdefault("OSMAP_KERNELS", "auto")
 os.environ.setdefault("OSMAP_QUICK_LOADS", "1")
+cli._start_up_without_gc()
 kernelwarm.prepare()
 import numba
 mark("numba")

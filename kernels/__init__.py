@@ -13,3 +13,7 @@ if _os.environ.get("OSMAP_QUICK_LOADS") == "1":
     from osmap_kernels.cacheload import quick_loads as _quick_loads
 
     _quick_loads()
+
+from osmap_kernels.cacheload import start_up_done as _start_up_done  # noqa: E402
+
+_start_up_done()

@@ -14,7 +14,7 @@ osmap_kernels then turns this on. A library user's process keeps Numba's behavio
 
 from __future__ import annotations
 
-__all__ = ["QUICK_LOADS_CHECKED", "quick_loads"]
+__all__ = ["QUICK_LOADS_CHECKED", "quick_loads", "start_up_done"]
 
 QUICK_LOADS_CHECKED = ("0.68.",)
 
@@ -47,3 +47,16 @@ def quick_loads() -> bool:
     load_overload.quick = True
     Cache.load_overload = load_overload
     return True
+
+
+def start_up_done() -> None:
+    """The console script switched the garbage collector off for its start-up
+    (osmap_cli.cli._start_up_without_gc; OSMAP_START_UP_GC=off) and this process still runs
+    without it: freeze what is loaded and switch it back on. A process that has the collector
+    on (a library user's, a worker that inherited the variable) is left alone."""
+    import gc
+    import os
+
+    if os.environ.get("OSMAP_START_UP_GC") == "off" and not gc.isenabled():
+        gc.freeze()
+        gc.enable()

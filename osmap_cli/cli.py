@@ -284,6 +284,8 @@ def _closed_stdout() -> int:
 # ---------------------------------------------------------------------------------------------
 # the console script and its exit
 
+START_UP_GC = "OSMAP_START_UP_GC"  # "off": this process started without the collector
+START_UP_SECONDS = 3.0  # the collector is back on after this long at the latest
 _console = [False]  # running as the console script: stop signals after the command are recorded
 _stopped_after: list = [None]  # a stop signal that arrived after the command
 
@@ -299,10 +301,36 @@ def run() -> None:
     _single_threaded_blas()  # before prepare() may import numpy
     os.environ.setdefault("OSMAP_KERNELS", "auto")
     os.environ.setdefault("OSMAP_QUICK_LOADS", "1")  # osmap_kernels.cacheload
+    _start_up_without_gc()
     from osmap_cli import kernelwarm
 
     kernelwarm.prepare()
     exit_now(main())
+
+
+def _start_up_without_gc() -> None:
+    """Python's cyclic garbage collector off while the libraries load: numpy, Numba and
+    OpenImageIO leave hundreds of thousands of long-lived objects, and every full collection
+    during their imports walks them all (about 5 % of a 256x256 synth's CPU time). Importing
+    osmap_kernels, the last of them, freezes what is loaded by then (never walked again) and
+    turns the collector back on (osmap_kernels.cacheload.start_up_done); so does a timer after
+    START_UP_SECONDS in a process that never imports it (a Dask client, `osmap surface`)."""
+    import gc
+    import threading
+
+    gc.disable()
+    os.environ[START_UP_GC] = "off"
+    timer = threading.Timer(START_UP_SECONDS, _collector_back_on)
+    timer.daemon = True
+    timer.start()
+
+
+def _collector_back_on() -> None:
+    import gc
+
+    if not gc.isenabled():
+        gc.freeze()
+        gc.enable()
 
 
 def _record_stop(signum, frame) -> None:

@@ -161,14 +161,15 @@ def load_manifest(root: str | None = None) -> Manifest | None:
     return manifest
 
 
-def write_manifest(root: str, packages: list[str], signatures: int) -> None:
+def write_manifest(root: str, packages: list[str], signatures: int, plan: str = "") -> None:
     """ROOT/manifest.json for the portable entries in ROOT/<package>/ (this numba, this
-    interpreter, the packages' sources as they are now)."""
+    interpreter, the packages' sources as they are now; PLAN: the digest of the warm-up plan
+    that compiled them)."""
     import numba
 
     manifest = {"numba": numba.__version__, "python": python_tag(),
                 "digest": sources_digest(packages), "packages": list(packages), "cpu": "generic",
-                "signatures": signatures}
+                "signatures": signatures, "plan": plan}
     os.makedirs(root, exist_ok=True)
     with open(os.path.join(root, MANIFEST), "w", encoding="utf-8") as handle:
         json.dump(manifest, handle, indent=1)

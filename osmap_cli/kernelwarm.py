@@ -4,9 +4,10 @@ A first run must not wait for Numba to compile (about 30 CPU s for `osmap synth`
 `osmap solid`). The mechanism, in the order a user meets it:
 
 1. **Build** (``pip install .``, the build hook in buildhook/osmap_build.py): the warm-up
-   PLAN below is run with Numba's target set to the ``generic`` CPU; the compiled entries go
-   into the package as its *portable cache* (osmap_cli.kernelcache). Generic code runs on any
-   CPU of the architecture, about 15 % slower than code compiled for this one.
+   plan (osmap_cli.kernelplan) is run with Numba's target set to the ``generic`` CPU; the
+   compiled entries go into the package as its *portable cache* (osmap_cli.kernelcache).
+   Generic code runs on any CPU of the architecture, about 10 % slower than code compiled for
+   this one.
 2. **First runs** (:func:`prepare`, called by the console script before any command): when the
    cache holds no kernels compiled for this CPU yet, the portable ones are seeded into Numba's
    cache folder and the run uses them (NUMBA_CPU_NAME=generic), so it starts at once.
@@ -34,29 +35,13 @@ import os
 import sys
 
 from osmap_cli import kernelcache
+from osmap_cli.kernelplan import PLAN, plan_digest, write_inputs
 
-__all__ = ["PLAN", "after_run", "build_portable", "compile_for_host", "prepare", "using_portable"]
+__all__ = ["after_run", "build_portable", "compile_for_host", "prepare", "using_portable"]
 
 POLICIES = ("auto", "host", "portable")
 COMPILE_LOCK = "osmap-compile.lock"
 PLAN_ENV = "OSMAP_WARM_PLAN"  # set in the processes that run the plan: no nested compiles
-
-# The warm-up plan: small runs of the commands, each in its own process, that between them call
-# every kernel with the argument types of a real run (sizes do not change them: a 64x64 synth
-# compiles what 256x256 to 4096x4096 ones use, as do RGBA, gray, 16-bit, --tileable, --uv-out,
-# guides, inpaint, tileable and apply). "{ex}": a 48x48 RGB exemplar, "{mesh}": a tetrahedron
-# with UVs (OBJ), "{out}": a scratch folder.
-# Each command runs with its defaults, so a new default method is covered as it lands; other
-# methods (`osmap solid --method legacy`: 70 CPU s of parallel kernels) compile on first use.
-# A new command with kernels of its own needs one line here.
-PLAN = {
-    "synth": ["synth", "{ex}", "-o", "{out}/synth.png", "--size", "64", "--quiet"],
-    "surface": ["surface", "--shape", "torus", "-o", "{out}/grid.obj", "--grid", "6x6",
-                "--points", "400", "--steps", "600", "--quiet"],
-    "solid": ["solid", "{ex}", "-o", "{out}/solid.npy", "--size", "16", "--quiet"],
-    "carve": ["carve", "{mesh}", "--exemplar", "{ex}", "--size", "16", "-o", "{out}/carved.glb",
-              "--texture-size", "64", "--quiet"],
-}
 
 _state = {"portable": False, "policy": "host"}
 
@@ -162,25 +147,6 @@ def _tell(line: str, words: set) -> None:
 # compiling: the plan (build, or no portable cache) and the portable signatures (this CPU)
 
 
-def _write_exemplar(path: str) -> None:
-    import numpy as np
-
-    from osmap_cli.imageio import write_image
-
-    rng = np.random.default_rng(0)
-    base = rng.random((12, 12, 3)).astype(np.float32)
-    pixels = np.kron(base, np.ones((4, 4, 1), np.float32)) * 0.8 + 0.2 * rng.random((48, 48, 3))
-    write_image(path, pixels.astype(np.float32), 8)
-
-
-# four triangles, each with its own UV triangle: a closed mesh whose UV islands do not overlap
-TETRAHEDRON_OBJ = """v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1
-vt 0.05 0.05\nvt 0.45 0.05\nvt 0.05 0.45\nvt 0.55 0.05\nvt 0.95 0.05\nvt 0.55 0.45
-vt 0.05 0.55\nvt 0.45 0.55\nvt 0.05 0.95\nvt 0.55 0.55\nvt 0.95 0.55\nvt 0.55 0.95
-f 1/1 3/2 2/3\nf 1/4 2/5 4/6\nf 1/7 4/8 3/9\nf 2/10 3/11 4/12
-"""
-
-
 def _children(jobs: list[tuple[list[str], dict]], workers: int) -> list[str | None]:
     """Run each (argv, env) as a child process, WORKERS at a time; for each, None if it
     succeeded, else the last line it printed on stderr."""
@@ -241,17 +207,14 @@ def run_plan(generic: bool, workers: int | None = None,
     root = tempfile.mkdtemp(prefix="osmap-warm-")
     work = os.path.join(root, "work")
     os.makedirs(work)
-    _write_exemplar(os.path.join(work, "ex.png"))
-    with open(os.path.join(work, "mesh.obj"), "w") as f:
-        f.write(TETRAHEDRON_OBJ)
+    inputs = write_inputs(work)
     runs = dict(PLAN)
     jobs = []
     for name, args in runs.items():
         env = _base_env(os.path.join(root, "cache", name) if staging else None, generic)
         out = os.path.join(work, f"out-{name}")
         os.makedirs(out)
-        fields = dict(ex=os.path.join(work, "ex.png"), mesh=os.path.join(work, "mesh.obj"),
-                      out=out)
+        fields = dict(inputs, out=out)
         argv = [sys.executable, "-m", "osmap_cli.cli", *(a.format(**fields) for a in args)]
         jobs.append((argv, env))
     results = _children(jobs, workers or _workers())
@@ -288,7 +251,7 @@ def build_portable(dest: str, log=print) -> int:
             if added:
                 packages.append(package)
                 count += added
-        kernelcache.write_manifest(dest, packages, count)
+        kernelcache.write_manifest(dest, packages, count, plan=plan_digest())
     finally:
         shutil.rmtree(root, ignore_errors=True)
     log(f"osmap: portable kernel cache: {count} signatures of {', '.join(packages)} "
@@ -432,7 +395,8 @@ def _main(argv: list[str]) -> int:
         return _background()
     if command == "portable":  # [--if-stale] DEST
         current = kernelcache.load_manifest(rest[-1])
-        if rest[0] == "--if-stale" and current and kernelcache.portable_usable(current):
+        if (rest[0] == "--if-stale" and current and kernelcache.portable_usable(current)
+                and current.get("plan") == plan_digest()):
             return 0
         build_portable(rest[-1])
         return 0

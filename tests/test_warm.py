@@ -21,6 +21,19 @@ def test_an_empty_cache_is_cold_and_the_repository_cache_is_warm(tmp_path):
     assert warm.cold_groups() == []  # the session fixture compiled them
 
 
+def test_a_regular_exemplars_lattice_kernels_are_warmed_too():
+    from osmap_cli.kernelplan import PLAN, plan_exemplar
+    from osmap_cli.synth.lattice import find_lattice
+
+    # the build's plan runs a regular exemplar beside the plain one (a lattice run calls them)
+    assert "{ex}" in PLAN["synth"] and "{regular}" in PLAN["synth"]
+    assert find_lattice(plan_exemplar(regular=True)) is not None
+    assert find_lattice(plan_exemplar()) is None
+    # and a development tree's first run compiles them with the organise group
+    names = {kernel.__name__ for kernel, _ in warm._dispatchers("organise")}
+    assert {"snap_field", "phase_sums"} <= names
+
+
 @pytest.fixture
 def cold(monkeypatch):
     """Pretend the cache is cold once; record what would be compiled."""
@@ -249,3 +262,32 @@ print(getattr(Cache.load_overload, "quick", False), missed, counts.sum(), areas.
     plain = _python(code, OSMAP_QUICK_LOADS="0").split()
     assert quick[0] == "True" and plain[0] == "False"
     assert quick[1:] == plain[1:] and quick[1] == "0"  # loaded from the cache, same results
+
+
+def test_the_console_script_starts_up_without_the_collector_until_the_kernels_load():
+    code = """
+import gc
+from osmap_cli import cli
+cli._start_up_without_gc()
+off = not gc.isenabled()
+import osmap_kernels
+print(off, gc.isenabled(), gc.get_freeze_count() > 0)
+"""
+    assert _python(code) == "True True True"
+    # a process that has the collector on (a library user's, a worker) is left alone
+    code = "import gc, osmap_kernels; print(gc.isenabled(), gc.get_freeze_count())"
+    assert _python(code, OSMAP_START_UP_GC="off") == "True 0"
+    # one that never imports the kernels (a Dask client) has it back after a while
+    code = """
+import gc, time
+from osmap_cli import cli
+cli.START_UP_SECONDS = 0.1
+cli._start_up_without_gc()
+off = not gc.isenabled()
+for _ in range(600):
+    if gc.isenabled():
+        break
+    time.sleep(0.05)
+print(off, gc.isenabled())
+"""
+    assert _python(code) == "True True"
