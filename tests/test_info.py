@@ -66,6 +66,22 @@ def test_info_reproduces_with_maps_uv_and_preset_files(run_cli, workdir):
         assert (workdir / name).read_bytes() == before[name], name
 
 
+@pytest.mark.parametrize("name", ["soft", "fast"])
+def test_info_reproduces_a_solid_made_with_a_preset_file(run_cli, workdir, name):
+    """A preset file is recorded by its file name, whatever its `name` says: a name that is no
+    built-in preset could not be re-run, and a built-in one ("fast") would stand for its own
+    table instead of the file's."""
+    (workdir / "soft.toml").write_text(f'name = "{name}"\n[solid]\niterations = 1\nknn = 1\n'
+                                       "position_weight = 2.0\n")
+    result = run_cli("solid", "cells.png", "-o", "v.nrrd", "--size", "8", "--preset",
+                     "soft.toml", "--quiet")
+    assert result.code == 0, result.err
+    first = (workdir / "v.nrrd").read_bytes()
+    command = _remake(run_cli, "v.nrrd")
+    assert "--preset soft.toml" in command
+    assert (workdir / "v.nrrd").read_bytes() == first, command
+
+
 def test_info_prints_provenance(run_cli, workdir):
     assert run_cli("synth", "cells.png", "-o", "o.png", "--size", "32", "--seed", "3",
                    "--preset", "fast", "--quiet").code == 0
