@@ -82,6 +82,20 @@ def test_info_reproduces_a_solid_made_with_a_preset_file(run_cli, workdir, name)
     assert (workdir / "v.nrrd").read_bytes() == first, command
 
 
+def test_info_reproduces_a_solid_of_three_exemplars(run_cli, workdir):
+    """--x, --y and --z are recorded by name and given again in their order."""
+    from osmap_cli.imageio import read_image
+
+    write_image(workdir / "turned.png", read_image(workdir / "cells.png").pixels[::-1].copy(), 8)
+    result = run_cli("solid", "--x", "cells.png", "--y", "turned.png", "--z", "cells.png",
+                     "-o", "v.nrrd", "--size", "8", "--preset", "fast", "--quiet")
+    assert result.code == 0, result.err
+    first = (workdir / "v.nrrd").read_bytes()
+    command = _remake(run_cli, "v.nrrd")
+    assert command.startswith("osmap solid --x cells.png --y turned.png --z cells.png -o v.nrrd")
+    assert (workdir / "v.nrrd").read_bytes() == first, command
+
+
 def test_info_prints_provenance(run_cli, workdir):
     assert run_cli("synth", "cells.png", "-o", "o.png", "--size", "32", "--seed", "3",
                    "--preset", "fast", "--quiet").code == 0

@@ -1,0 +1,104 @@
+"""`make mutants`: mutmut over one module at a time, each with the test files aimed at it
+(docs/testing.md, "Mutation testing").
+
+    python tests/mutation_run.py provenance [--max-children 1]
+
+One mutmut run per module: mutmut maps each function to the tests of its test selection that
+reach it and runs those for each mutant, so a narrow selection keeps a module's run short (every
+command writes through output.py and reads options.py: with the whole suite each of their
+mutants would run hundreds of syntheses). A run starts from a fresh copy of the package in
+mutants/ (mutmut does not refresh a copied module that it does not mutate) and leaves its
+verdicts in mutants/scores/MODULE.json, which tests/mutation_report.py reads. The shared
+settings (files to mutate, the fork server, the timeout) are in [tool.mutmut] of pyproject.toml.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+SCORES = ROOT / "mutants" / "scores"
+
+# module -> (mutant name patterns, test files)
+MODULES = {
+    "schedule": (["osmap_cli.engine.xǁScheduleǁvalues*"],
+                 ["tests/test_engine.py"]),
+    "options": (["osmap_cli.options.*"],
+                ["tests/test_options.py", "tests/test_presets.py"]),
+    "organise": (["osmap_cli.synth.organise.*"],
+                 ["tests/test_mechanisms.py"]),
+    "output": (["osmap_cli.output.*"],
+               ["tests/test_durability.py", "tests/test_imageio.py"]),
+    "provenance": (["osmap_cli.provenance.*"],
+                   ["tests/test_provenance.py", "tests/test_info.py"]),
+    "batch": (["osmap_cli.batch.*", "osmap_cli.records.*"],
+              ["tests/test_batch.py"]),
+}
+
+
+def _fresh_copy() -> None:
+    """Remove mutmut's copy of the package and its state; keep the scores of other modules."""
+    folder = ROOT / "mutants"
+    if folder.is_dir():
+        for entry in folder.iterdir():
+            if entry != SCORES:
+                shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
+
+
+def _verdicts(patterns: list[str]) -> dict[str, int | None]:
+    codes: dict[str, int | None] = {}
+    for meta in sorted((ROOT / "mutants").rglob("*.py.meta")):
+        for name, code in json.loads(meta.read_text("utf-8"))["exit_code_by_key"].items():
+            if any(fnmatch.fnmatchcase(name, p) for p in patterns):
+                codes[name] = code
+    return codes
+
+
+def run(module: str, max_children: int) -> int:
+    """mutmut over MODULE with its test files; returns mutmut's exit code."""
+    import mutmut.configuration
+    from mutmut.__main__ import cli
+
+    patterns, tests = MODULES[module]
+    config = mutmut.configuration.config()
+    config.pytest_add_cli_args_test_selection = list(tests)
+    try:
+        cli(["run", "--max-children", str(max_children), *patterns], standalone_mode=False)
+        code = 0
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else 1
+    SCORES.mkdir(parents=True, exist_ok=True)
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, text=True,
+                            capture_output=True).stdout.strip()
+    record = {"module": module, "commit": commit, "tests": tests,
+              "verdicts": _verdicts(patterns)}
+    (SCORES / f"{module}.json").write_text(json.dumps(record, indent=1), "utf-8")
+    return code
+
+
+def main(argv: list[str]) -> int:
+    args = [a for a in argv if not a.startswith("--max-children")]
+    children = next((int(a.split("=", 1)[1]) for a in argv if a.startswith("--max-children=")),
+                    1)
+    unknown = [a for a in args if a not in MODULES]
+    if len(args) != 1 or unknown:
+        print(f"usage: mutation_run.py MODULE [--max-children=N]; modules: {', '.join(MODULES)}",
+              file=sys.stderr)
+        return 2
+    # run from the repository root, with nothing of tests/ importable but through pytest
+    here = str(Path(__file__).resolve().parent)
+    sys.path[:] = [p for p in sys.path if str(Path(p or ".").resolve()) != here]
+    _fresh_copy()
+    return run(args[0], children)
+
+
+if __name__ == "__main__":
+    import os
+
+    os.chdir(ROOT)
+    sys.exit(main(sys.argv[1:]))
