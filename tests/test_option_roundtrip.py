@@ -27,8 +27,8 @@ from osmap_cli.synth.options import FillOptions, SynthOptions
 # flags that name inputs and outputs or steer the run, not the bytes of a file
 NOT_OPTIONS = {
     "exemplars", "images", "output", "out_dir", "name_template", "jobs", "fail_fast",
-    "json_lines", "overwrite", "scheduler", "scheduler_file", "threads", "quiet", "uv", "maps",
-    "mask", "ex_x", "ex_y", "ex_z", "preview", "fmt",
+    "json_lines", "overwrite", "scheduler", "scheduler_file", "threads", "quiet", "verbose", "uv",
+    "maps", "mask", "ex_x", "ex_y", "ex_z", "preview", "fmt",
 }
 # flags that change the bytes and are not option fields: --bit-depth, --normal, --nrrd-encoding
 # and --target-guide are set by the runs below; tests/test_info.py round-trips --with, --uv-out
@@ -38,15 +38,20 @@ NOT_OPTIONS |= {"bit_depth", "normal", "nrrd_encoding", "preset", "with_maps", "
                 "also", "guide", "target_guide", "orientation_field", "scale_field"}
 # tuning flags osmap inpaint / tileable take but do not use (no guided fills): not recorded
 FILL_IGNORES = ("guide_weight",)
+# free-text options (no choices): a valid value other than the default, given here so that a new
+# free-text option fails this test until it is listed
+TEXT_VALUES = {"lattice": "off"}
 COMPOSED = {"width": "size", "height": "size", "depth": "size", "rotate_x": "orientation",
             "rotate_y": "orientation", "rotate_z": "orientation"}
 
 
-def other_value(spec, value):
+def other_value(spec, value, name=""):
     """A valid value other than VALUE: the next choice, the other truth value, a nearby
     number (small steps keep every run cheap)."""
     if spec.kind is bool:
         return not value
+    if spec.kind is str and not spec.choices:
+        return TEXT_VALUES[name]
     if spec.kind is str:
         return next(c for c in spec.choices if c != value)
     step = 1 if spec.kind is int else max(abs(value) * 0.1, (spec.hi - spec.lo) * 0.01)
@@ -125,7 +130,7 @@ def _synth_values(skip=()):
     """Every option field of SynthOptions at another value (sizes, seed and the method set by
     the caller)."""
     defaults = SynthOptions()
-    return {name: other_value(spec, getattr(defaults, name))
+    return {name: other_value(spec, getattr(defaults, name), name)
             for name, spec in _fields(SynthOptions).items()
             if name not in ("width", "height", "seed", "method", *skip)}
 
@@ -177,7 +182,7 @@ def test_fill_options_round_trip(run_cli, workdir, command):
 
 def _solid_values(**fixed):
     defaults = SolidOptions()
-    values = {name: other_value(spec, getattr(defaults, name))
+    values = {name: other_value(spec, getattr(defaults, name), name)
               for name, spec in _fields(SolidOptions).items()
               if name not in ("width", "height", "depth", "seed", *COMPOSED)}
     values.update(fixed)

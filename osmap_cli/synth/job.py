@@ -123,6 +123,7 @@ class SynthJob(Job):
     refused: str | None = None  # why the job must not run (an output would replace an input)
     progress: bool = False
     quiet: bool = False
+    verbose: bool = False  # the summary also says what the analysis found (the lattice)
     label: str = "osmap synth"
 
     @property
@@ -256,6 +257,7 @@ class SynthJob(Job):
         channels = image.pixels.shape[2]
         fmt, depth = output_depth(self.output, self.bit_depth, channels, image.bit_depth)
         args, extra, command = job.provenance(inputs, depth)
+        extra.update(lattice_meta(result))
         recorded = job.recorded_options()
 
         def meta(role, more_args=(), more_extra=None):
@@ -282,7 +284,7 @@ class SynthJob(Job):
             ext = os.path.splitext(self.output)[1].lower()
             stage_image(self.uv_out, uv, 32, ("u", "v"),
                         meta("uv", (), {"uv_channels": UV_DESCRIPTION, "image_ext": ext}))
-        return job._summary(fmt, depth, channels, inputs)
+        return verbose_summary(self, job._summary(fmt, depth, channels, inputs), result)
 
     def _summary(self, fmt: str, depth: int, channels: int, inputs: _Inputs):
         kept = channels - 1 if fmt == "jpeg" and channels in (2, 4) else channels
@@ -300,3 +302,20 @@ class SynthJob(Job):
             warnings.append(f"{self.output}: JPEG cannot store alpha; the alpha channel was "
                             "dropped")
         return line, warnings
+
+
+def lattice_meta(result) -> dict:
+    """The lattice the output keeps, for its provenance (none for the paper method)."""
+    from osmap_cli.synth.regular import lattice_text
+
+    return {"lattice": lattice_text(getattr(result, "lattice", None))}
+
+
+def verbose_summary(job, summary, result):
+    """(line, warnings) with what the analysis found appended when the job is verbose."""
+    if not job.verbose:
+        return summary
+    from osmap_cli.synth.regular import describe
+
+    line, warnings = summary
+    return f"{line}; lattice: {describe(getattr(result, 'lattice', None))}", warnings
