@@ -117,13 +117,17 @@ def test_info_reads_nrrd_fields(run_cli, tmp_path):
     path.write_bytes(header.encode() + np.zeros(1, "<f4").tobytes())
     result = run_cli("info", path)
     assert result.code == 0, result.err
-    assert "seed      9" in result.out.replace("  ", " " * 2)
-    assert f"osmap solid marble.png -o {path} --size 1x1x1 --seed 9" in result.out
+    fields = dict(line.split(None, 1) for line in result.out.splitlines())
+    assert fields["seed"] == "9" and fields["exemplar"] == "marble.png"
+    assert fields["command"] == "solid" and fields["args"] == "--size 1x1x1 --seed 9"
+    assert fields["reproduce"] == f"osmap solid marble.png -o {path} --size 1x1x1 --seed 9"
 
 
 def test_info_errors(run_cli, small_samples, tmp_path):
-    result = run_cli("info", small_samples / "cells.png")  # not written by osmap
-    assert result.code == 1 and "no osmap provenance" in result.err
+    foreign = small_samples / "cells.png"  # not written by osmap
+    result = run_cli("info", foreign)
+    assert result.code == 1, result.err
+    assert result.err_lines == [f"osmap: error: {foreign}: no osmap provenance in this file"]
     result = run_cli("info", tmp_path / "missing.png")
-    assert result.code == 1 and "no such file" in result.err
-    assert len(result.err_lines) == 1
+    assert result.code == 1, result.err
+    assert result.err_lines == [f"osmap: error: {tmp_path / 'missing.png'}: no such file"]
