@@ -321,3 +321,17 @@ def test_an_incomplete_write_is_an_error(tmp_path, monkeypatch):
     with pytest.raises(OsmapError) as info:
         output.write_bytes(target, b"12345")
     assert str(info.value) == f"{tmp_path / 'f.bin'}: incomplete write (3 of 5 bytes)"
+
+
+def test_an_output_directory_that_cannot_be_written_is_named(tmp_path, monkeypatch):
+    """Refused before any work, naming the directory as the user gave it ("." for none)."""
+    from osmap_cli.errors import OsmapError
+    from osmap_cli.output import check_parent
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "sub").mkdir()
+    monkeypatch.setattr(os, "access", lambda path, mode: False)  # root may write anywhere
+    for target, shown in (("out.png", "."), ("sub/out.png", "sub")):
+        with pytest.raises(OsmapError) as info:
+            check_parent(target)
+        assert str(info.value) == f"{target}: output directory {shown} is not writable"
