@@ -36,7 +36,11 @@ MODULES = {
                ["tests/test_durability.py", "tests/test_imageio.py"]),
     "provenance": (["osmap_cli.provenance.*"],
                    ["tests/test_provenance.py", "tests/test_info.py"]),
-    "batch": (["osmap_cli.batch.*", "osmap_cli.records.*"],
+    # the code a batch runs in this process and reports with; the worker pool's own functions
+    # (_run_pool, _init_worker, _worker_job) run in spawned processes, at 10-15 s a test
+    "batch": (["osmap_cli.batch.xǁJobǁ*", "osmap_cli.batch.x_skip_or_refuse*",
+               "osmap_cli.batch.x_run_jobs*", "osmap_cli.batch.xǁ_Reporterǁ*",
+               "osmap_cli.batch.x__say*", "osmap_cli.records.*"],
               ["tests/test_batch.py"]),
 }
 
