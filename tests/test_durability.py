@@ -330,8 +330,57 @@ def test_an_output_directory_that_cannot_be_written_is_named(tmp_path, monkeypat
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "sub").mkdir()
-    monkeypatch.setattr(os, "access", lambda path, mode: False)  # root may write anywhere
-    for target, shown in (("out.png", "."), ("sub/out.png", "sub")):
+    # folders that exist but may be neither written nor searched (as root every folder may)
+    monkeypatch.setattr(os, "access", lambda path, mode: mode == os.F_OK)
+    for target, shown in (("out.png", "."), ("sub/out.png", "sub"), ("sub/BOX/", "sub")):
         with pytest.raises(OsmapError) as info:
             check_parent(target)
         assert str(info.value) == f"{target}: output directory {shown} is not writable"
+    with pytest.raises(OsmapError) as info:
+        check_parent("gone/BOX/")  # a folder target given with its slash
+    assert str(info.value) == "gone/BOX/: output directory gone does not exist"
+
+
+def test_a_folder_target_may_end_in_a_slash(tmp_path):
+    from osmap_cli.output import write_atomically
+
+    for _ in range(2):  # made, then replaced
+        write_atomically(f"{tmp_path / 'BOX'}/", _write_folder(["a"]), folder=True)
+        assert os.listdir(tmp_path) == ["BOX"] and os.listdir(tmp_path / "BOX") == ["a"]
+
+
+def test_a_folder_that_cannot_be_opened_to_sync_is_skipped(tmp_path, monkeypatch):
+    """A directory one may write but not read cannot be opened to sync it: skipped, as a file
+    system without directory syncs is; a file that cannot be opened is an error."""
+    from osmap_cli.errors import OsmapError
+    from osmap_cli.output import write_atomically
+
+    real, files_too = os.open, []
+
+    def open_(path, flags, *args, **kwargs):
+        temporary = os.path.basename(path).startswith(".osmap-")
+        if os.path.isdir(path) or (files_too and temporary):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES))
+        return real(path, flags, *args, **kwargs)
+
+    with monkeypatch.context() as patch:
+        patch.setattr(os, "open", open_)
+        write_atomically(str(tmp_path / "vol"), _write_folder(["a"]), folder=True)
+        assert os.listdir(tmp_path / "vol") == ["a"]
+        files_too.append(True)
+        with pytest.raises(OsmapError, match=r"o\.txt: cannot write file \(Permission denied\)"):
+            write_atomically(str(tmp_path / "o.txt"), _write_text("x"))
+    assert os.listdir(tmp_path) == ["vol"]
+
+
+def test_a_transaction_discarded_twice_can_stage_again(tmp_path):
+    from osmap_cli.output import Outputs
+
+    with Outputs() as outputs:
+        outputs.stage(str(tmp_path / "a.txt"), _write_text("a"))
+        outputs.discard()
+        outputs.discard()
+        assert os.listdir(tmp_path) == []
+        outputs.stage(str(tmp_path / "b.txt"), _write_text("b"))
+        outputs.commit()
+    assert os.listdir(tmp_path) == ["b.txt"]
