@@ -41,7 +41,7 @@ MODULES = {
     "batch": (["osmap_cli.batch.xǁJobǁ*", "osmap_cli.batch.x_skip_or_refuse*",
                "osmap_cli.batch.x_run_jobs*", "osmap_cli.batch.xǁ_Reporterǁ*",
                "osmap_cli.batch.x__say*", "osmap_cli.records.*"],
-              ["tests/test_batch.py"]),
+              ["tests/test_records.py", "tests/test_batch.py"]),
 }
 
 
