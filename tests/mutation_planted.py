@@ -60,7 +60,7 @@ BUGS = {
         "osmap_cli/image_write.py",
         "    _verify(fspath, name, label, fmt, depth, data)\n",
         "",
-        ["tests/test_imageio.py"]),
+        ["tests/test_durability.py"]),
     "no-fsync-before-commit": (
         "osmap_cli/output.py",
         "            _fsync_tree(temp)\n",

@@ -384,3 +384,36 @@ def test_a_transaction_discarded_twice_can_stage_again(tmp_path):
         outputs.stage(str(tmp_path / "b.txt"), _write_text("b"))
         outputs.commit()
     assert os.listdir(tmp_path) == ["b.txt"]
+
+
+# (extension, format label, what the writer lost); a PNG cut short is refused by its writer
+LOSSY = [("exr", "EXR", "scanlines"), ("tif", "TIFF", "scanlines"), ("png", "PNG", "pixels"),
+         ("exr", "EXR", "pixels"), ("tif", "TIFF", "pixels")]
+
+
+@pytest.mark.parametrize("ext, label, lost", LOSSY, ids=[f"{c[0]}-{c[2]}" for c in LOSSY])
+def test_a_writer_that_reports_success_is_checked_by_reading_back(tmp_path, monkeypatch, ext,
+                                                                   label, lost):
+    """Image writers do not all report a failed write (a full disk can leave a cut-off file
+    behind a successful close): each image is read back, and one that lost scanlines or holds
+    other pixels is an error, with nothing left behind."""
+    import numpy as np
+
+    from osmap_cli import image_write
+    from osmap_cli.errors import OsmapError
+    from osmap_cli.imageio import write_image
+
+    def lossy(out, data):
+        if lost == "scanlines":
+            out.write_scanlines(0, data.shape[0] // 2, 0, data[:data.shape[0] // 2])
+        else:
+            out.write_image(data[::-1].copy())
+        return True
+
+    monkeypatch.setattr(image_write, "_write_pixels", lossy)
+    pixels = np.random.default_rng(0).random((32, 32, 3)).astype(np.float32)
+    with pytest.raises(OsmapError) as info:
+        write_image(tmp_path / f"out.{ext}", pixels)
+    assert str(info.value) == (f"{tmp_path / f'out.{ext}'}: failed to write {label} file (the "
+                               "file on disk is incomplete: is the disk full?)")
+    assert os.listdir(tmp_path) == []
