@@ -91,5 +91,6 @@ def test_a_quiet_reporter_prints_failures_only(capsys):
     report(traced)
     out, err = capsys.readouterr()
     assert out == ""
-    assert err.startswith("Traceback") and err.splitlines()[-1] == (
-        "osmap: internal error: in/cells.png: ValueError: boom")
+    # the traceback (--debug), then the one error line, nothing between them
+    assert err.startswith("Traceback") and err.splitlines()[-2:] == [
+        "ValueError: boom", "osmap: internal error: in/cells.png: ValueError: boom"]
