@@ -5,12 +5,16 @@ these check the records in milliseconds."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import os
+import re
+from pathlib import Path
 
 import pytest
 
 from osmap_cli import records
-from osmap_cli.batch import _Reporter
+from osmap_cli.batch import Job, _Reporter, run_jobs
 from osmap_cli.errors import OsmapError
 from osmap_cli.records import failed_record, job_record, run_caught
 
@@ -96,3 +100,72 @@ def test_a_quiet_reporter_prints_failures_only(capsys):
     # the traceback (--debug), then the one error line, nothing between them
     assert err.startswith("Traceback") and err.splitlines()[-2:] == [
         "ValueError: boom", "osmap: internal error: in/cells.png: ValueError: boom"]
+
+
+@dataclasses.dataclass(frozen=True)
+class _Write(Job):
+    """A job that writes the id of the process that ran it (or fails as told)."""
+
+    exemplar: str
+    target: str
+    fails: str = ""  # "", "error" or "internal"
+    replace: bool = True
+    refused: str | None = None
+    progress: bool = False
+
+    @property
+    def outputs(self) -> list[str]:
+        return [self.target]
+
+    def describe(self) -> dict:
+        return {"input": self.exemplar, "outputs": self.outputs}
+
+    def read(self):
+        if self.fails == "error":
+            raise OsmapError(f"{self.exemplar}: not an image")
+        if self.fails == "internal":
+            raise KeyError("lost")
+        return os.getpid()
+
+    def compute(self, inputs):
+        return inputs
+
+    def stage(self, outputs, inputs, result):
+        outputs.stage(self.target, lambda temp: Path(temp).write_text(str(result)))
+        return f"wrote {self.target}", ["small exemplar"]
+
+
+def test_a_job_runs_read_to_commit_and_keeps_its_warnings(tmp_path):
+    record = _Write("a.png", str(tmp_path / "a.txt")).run()
+    assert record["status"] == "ok" and record["_warnings"] == ["small exemplar"]
+    assert re.fullmatch(rf"wrote {re.escape(str(tmp_path))}/a\.txt \(\d+\.\d s\)",
+                        record["_line"])
+    assert (tmp_path / "a.txt").read_text() == str(os.getpid())
+
+
+def test_run_jobs_by_default_runs_every_job_here_and_reports_text(tmp_path, capsys):
+    """The defaults: one job after another in this process, a failure does not stop the
+    others, a line per job on stdout, warnings, errors and the summary on stderr, no
+    traceback."""
+    jobs = [_Write("a.png", str(tmp_path / "a.txt"), fails="internal"),
+            _Write("b.png", str(tmp_path / "b.txt")), _Write("c.png", str(tmp_path / "c.txt"))]
+    assert run_jobs(jobs) == 1
+    out, err = capsys.readouterr()
+    assert [line.split(" (")[0] for line in out.splitlines()] == [
+        f"wrote {tmp_path / 'b.txt'}", f"wrote {tmp_path / 'c.txt'}"]
+    lines = err.splitlines()
+    assert lines[:-1] == ["osmap: internal error: a.png: KeyError: 'lost'",
+                          "osmap: warning: small exemplar", "osmap: warning: small exemplar"]
+    assert lines[-1].startswith("osmap: 3 jobs: 2 written, 0 skipped, 1 failed (")
+    assert sorted(os.listdir(tmp_path)) == ["b.txt", "c.txt"]
+    assert {(tmp_path / n).read_text() for n in ("b.txt", "c.txt")} == {str(os.getpid())}
+
+
+def test_run_jobs_quiet_with_debug_prints_the_failure_and_its_traceback(tmp_path, capsys):
+    jobs = [_Write("a.png", str(tmp_path / "a.txt")),
+            _Write("b.png", str(tmp_path / "b.txt"), fails="internal")]
+    assert run_jobs(jobs, quiet=True, debug=True) == 1
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert err.startswith("Traceback") and err.splitlines()[-1] == (
+        "osmap: internal error: b.png: KeyError: 'lost'")
