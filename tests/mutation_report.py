@@ -64,9 +64,10 @@ def main(modules: list[str]) -> int:
         checked = tally["killed"] + tally["survived"]
         rate = tally["survived"] / checked if checked else 0.0
         failed |= not checked or rate > LIMIT or bool(tally["not checked"])
+        tests = " ".join(Path(t).name for t in record["tests"] if not t.startswith("-"))
         line = (f"{module:12} {tally['mutants']:8d} {tally['killed']:7d} "
                 f"{tally['equivalent']:6d} {tally['survived']:9d} {rate:6.1%}  "
-                f"{record['commit']:8} {' '.join(Path(t).name for t in record['tests'])}")
+                f"{record['commit']:8} {tests}")
         if tally["not checked"]:
             line += f"  ({tally['not checked']} not checked)"
         print(line)
