@@ -169,3 +169,38 @@ def test_run_jobs_quiet_with_debug_prints_the_failure_and_its_traceback(tmp_path
     assert out == ""
     assert err.startswith("Traceback") and err.splitlines()[-1] == (
         "osmap: internal error: b.png: KeyError: 'lost'")
+
+
+def test_a_single_job_raises_its_error_and_reports_no_summary(tmp_path, capsys):
+    """`osmap synth X -o Y`: one job's failure is the command's failure (raised, reported like
+    any other); a single job that succeeds prints its line and no summary."""
+    with pytest.raises(OsmapError, match=r"^a\.png: not an image$"):
+        run_jobs([_Write("a.png", str(tmp_path / "a.txt"), fails="error")])
+    assert run_jobs([_Write("b.png", str(tmp_path / "b.txt"))]) == 0
+    out, err = capsys.readouterr()
+    assert out.startswith(f"wrote {tmp_path / 'b.txt'} (")
+    assert err.splitlines() == ["osmap: warning: small exemplar"]
+
+
+def test_a_cluster_runs_every_job_with_the_run_s_settings(tmp_path, monkeypatch, capsys):
+    """--scheduler: every job, even a single one, goes to the cluster with --fail-fast and
+    --debug; the jobs it did not run appear in the summary."""
+    from osmap_cli import cluster
+
+    calls = []
+
+    def run_cluster(jobs, spec, fail_fast, debug, report):
+        calls.append((jobs, spec, fail_fast, debug))
+        report(run_caught(jobs[0], debug))
+        return len(jobs) - 1
+
+    monkeypatch.setattr(cluster, "run_cluster", run_cluster)
+    jobs = [_Write("a.png", str(tmp_path / "a.txt"), fails="error"),
+            _Write("b.png", str(tmp_path / "b.txt"))]
+    assert run_jobs(jobs, fail_fast=True, debug=True, cluster="spec") == 1
+    assert run_jobs(jobs[1:], cluster="spec") == 0
+    assert calls == [(jobs, "spec", True, True), (jobs[1:], "spec", False, False)]
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == "osmap: error: a.png: not an image"
+    assert err[1].startswith("osmap: 2 jobs: 0 written, 0 skipped, 1 failed, 1 not run "
+                             "(--fail-fast) (")
