@@ -1,15 +1,18 @@
 """`make mutants`: mutmut over one module at a time, each with the test files aimed at it
 (docs/testing.md, "Mutation testing").
 
-    python tests/mutation_run.py provenance [--max-children 1]
+    python tests/mutation_run.py provenance [--max-children=1]
+    python tests/mutation_run.py provenance --survivors    # only the last run's survivors
 
 One mutmut run per module: mutmut maps each function to the tests of its test selection that
 reach it and runs those for each mutant, so a narrow selection keeps a module's run short (every
 command writes through output.py and reads options.py: with the whole suite each of their
 mutants would run hundreds of syntheses). A run starts from a fresh copy of the package in
 mutants/ (mutmut does not refresh a copied module that it does not mutate) and leaves its
-verdicts in mutants/scores/MODULE.json, which tests/mutation_report.py reads. The shared
-settings (files to mutate, the fork server, the timeout) are in [tool.mutmut] of pyproject.toml.
+verdicts in mutants/scores/MODULE.json, which tests/mutation_report.py reads; --survivors
+checks again only the mutants that survived there (not listed as equivalent), after new tests,
+and updates their verdicts. The shared settings (files to mutate, the fork server, the
+timeout) are in [tool.mutmut] of pyproject.toml.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 SCORES = ROOT / "mutants" / "scores"
+SURVIVED = {0, 5, 33}  # mutmut's exit codes of a mutant that no test killed
 
 # module -> (mutant name patterns, test files)
 MODULES = {
@@ -65,12 +69,27 @@ def _verdicts(patterns: list[str]) -> dict[str, int | None]:
     return codes
 
 
-def run(module: str, max_children: int) -> int:
-    """mutmut over MODULE with its test files; returns mutmut's exit code."""
+def _survivors(module: str) -> tuple[dict, list[str]]:
+    """The last record of MODULE and its survivors that are not listed as equivalent."""
+    record = json.loads((SCORES / f"{module}.json").read_text("utf-8"))
+    lines = (ROOT / "tests" / "mutants_equivalent.txt").read_text("utf-8").splitlines()
+    known = {line.split("#")[0].strip() for line in lines}
+    return record, [name for name, code in record["verdicts"].items()
+                    if code in SURVIVED and name not in known]
+
+
+def run(module: str, max_children: int, survivors: bool = False) -> int:
+    """mutmut over MODULE with its test files (SURVIVORS: over the last run's survivors);
+    returns mutmut's exit code."""
     import mutmut.configuration
     from mutmut.__main__ import cli
 
     patterns, tests = MODULES[module]
+    record = {"module": module, "tests": tests, "verdicts": {}}
+    if survivors:
+        record, patterns = _survivors(module)
+        if not patterns:
+            return 0
     config = mutmut.configuration.config()
     config.pytest_add_cli_args_test_selection = list(tests)
     try:
@@ -79,28 +98,30 @@ def run(module: str, max_children: int) -> int:
     except SystemExit as exc:
         code = exc.code if isinstance(exc.code, int) else 1
     SCORES.mkdir(parents=True, exist_ok=True)
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, text=True,
-                            capture_output=True).stdout.strip()
-    record = {"module": module, "commit": commit, "tests": tests,
-              "verdicts": _verdicts(patterns)}
+    record["commit"] = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
+                                      text=True, capture_output=True).stdout.strip()
+    record["verdicts"].update(_verdicts(patterns))
+    if survivors:
+        record["rechecked"] = patterns
     (SCORES / f"{module}.json").write_text(json.dumps(record, indent=1), "utf-8")
     return code
 
 
 def main(argv: list[str]) -> int:
-    args = [a for a in argv if not a.startswith("--max-children")]
+    survivors = "--survivors" in argv
+    args = [a for a in argv if not a.startswith("--max-children") and a != "--survivors"]
     children = next((int(a.split("=", 1)[1]) for a in argv if a.startswith("--max-children=")),
                     1)
     unknown = [a for a in args if a not in MODULES]
     if len(args) != 1 or unknown:
-        print(f"usage: mutation_run.py MODULE [--max-children=N]; modules: {', '.join(MODULES)}",
-              file=sys.stderr)
+        print("usage: mutation_run.py MODULE [--max-children=N] [--survivors]; modules: "
+              + ", ".join(MODULES), file=sys.stderr)
         return 2
     # run from the repository root, with nothing of tests/ importable but through pytest
     here = str(Path(__file__).resolve().parent)
     sys.path[:] = [p for p in sys.path if str(Path(p or ".").resolve()) != here]
     _fresh_copy()
-    return run(args[0], children)
+    return run(args[0], children, survivors)
 
 
 if __name__ == "__main__":
