@@ -204,3 +204,46 @@ def test_a_cluster_runs_every_job_with_the_run_s_settings(tmp_path, monkeypatch,
     assert err[0] == "osmap: error: a.png: not an image"
     assert err[1].startswith("osmap: 2 jobs: 0 written, 0 skipped, 1 failed, 1 not run "
                              "(--fail-fast) (")
+
+
+def test_workers_run_the_jobs_in_a_pool_with_the_run_s_settings(tmp_path, monkeypatch,
+                                                                 capsys):
+    """-j N with several jobs hands them to the worker pool (its own test: test_batch.py's
+    -j 2 batch); one job, or -j 1, runs here. The summary counts what the pool did not run
+    and the seconds since the batch began."""
+    from osmap_cli import batch
+
+    calls = []
+
+    def run_pool(jobs, workers, fail_fast, debug, report):
+        calls.append((jobs, workers, fail_fast, debug))
+        report(run_caught(jobs[0], debug))
+        return len(jobs) - 1
+
+    monkeypatch.setattr(batch, "_run_pool", run_pool)
+    monkeypatch.setattr(batch.time, "monotonic", lambda: 100.0)
+    jobs = [_Write("a.png", str(tmp_path / "a.txt"), fails="error"),
+            _Write("b.png", str(tmp_path / "b.txt"))]
+    assert run_jobs(jobs, workers=2, fail_fast=True, debug=True) == 1
+    assert calls == [(jobs, 2, True, True)]
+    assert capsys.readouterr().err.splitlines() == [
+        "osmap: error: a.png: not an image",
+        "osmap: 2 jobs: 0 written, 0 skipped, 1 failed, 1 not run (--fail-fast) (0.0 s)"]
+    assert run_jobs(jobs[1:], workers=2, json_lines=True) == 0  # one job: here, no summary
+    assert run_jobs(jobs[1:] * 3, workers=1) == 0
+    assert len(calls) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert err[:-1] == ["osmap: warning: small exemplar"] * 4
+    assert err[-1] == "osmap: 3 jobs: 3 written, 0 skipped, 0 failed (0.0 s)"
+
+
+def test_fail_fast_counts_the_jobs_after_the_failure(tmp_path, capsys):
+    jobs = [_Write("a.png", str(tmp_path / "a.txt")),
+            _Write("b.png", str(tmp_path / "b.txt"), fails="error"),
+            _Write("c.png", str(tmp_path / "c.txt")), _Write("d.png", str(tmp_path / "d.txt"))]
+    assert run_jobs(jobs, fail_fast=True, quiet=True) == 1
+    assert run_jobs(jobs, fail_fast=True) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == "osmap: error: b.png: not an image"  # quiet: the failure only
+    assert err[-1].startswith("osmap: 4 jobs: 1 written, 0 skipped, 1 failed, 2 not run")
+    assert sorted(os.listdir(tmp_path)) == ["a.txt"]
