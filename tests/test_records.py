@@ -1,7 +1,8 @@
-"""A finished job's record (osmap_cli.records) and how a batch reports it (batch._Reporter):
-the failure of one job is one line naming its exemplar, an unexpected error is marked as
-internal (its traceback kept only with --debug). The batches themselves are in test_batch.py;
-these check the records in milliseconds."""
+"""A finished job's record (osmap_cli.records), how a batch reports it (batch._Reporter) and
+where run_jobs sends the jobs (here, the worker pool, a cluster): the failure of one job is one
+line naming its exemplar, an unexpected error is marked as internal (its traceback kept only
+with --debug). Real batches are in test_batch.py; these use jobs that write a line of text, in
+milliseconds."""
 
 from __future__ import annotations
 
