@@ -23,6 +23,7 @@ from pathlib import Path
 import common
 import numpy as np
 import OpenImageIO as oiio
+import quality
 from common import DOCS_DIR, PEERS_DIR, SMALL_EXEMPLARS
 
 CELL = 256
@@ -164,8 +165,6 @@ def write_jpeg(buf: oiio.ImageBuf, path: Path, log=print) -> Path:
 
 def ensure_outputs(outdir: Path, variants: list[str], names: list[str], log=print):
     """Synthesize the osmap outputs the sheets need that are not in OUTDIR yet."""
-    import quality
-
     for v in variants:
         variant = quality.VARIANTS[v]
         missing = [n for n in names if not (outdir / v / f"{n}.png").exists()]
@@ -213,8 +212,6 @@ def tileable_sheet(outdir: Path, names: list[str], path: Path, log=print) -> Pat
 
 def make_all(outdir: Path, synth_missing: bool = True, log=print) -> list[tuple[Path, str]]:
     """Both sheets; returns [(path, description)]."""
-    import quality
-
     names = quality.exemplar_names()
     if synth_missing:
         ensure_outputs(outdir, ["default", "paper", "tileable"], names, log=log)
@@ -240,8 +237,6 @@ def main(argv=None) -> int:
     if not SMALL_EXEMPLARS.is_dir() or not PEERS_DIR.is_dir():
         print(common.shared_note("the contact sheets"), file=sys.stderr)
         return 2
-    import quality
-
     outdir = args.outdir or quality.default_outdir()
     for path, _ in make_all(outdir, synth_missing=not args.no_synth):
         print(path)

@@ -487,10 +487,11 @@ def section(results: list[Result], outdir: Path, elapsed: float, quick: bool,
 
 # ----------------------------------------------------------------------------- entry points
 
-def run(quick: bool = False, outdir: Path | None = None, jobs: int = 2, sheets: bool = True,
+def run(quick: bool = False, outdir: Path | None = None, jobs: int = 2, sheets=None,
         log=print) -> str:
     """Everything for BENCHMARKS.md: all four variants (quick: default and tileable on four
-    exemplars), then the contact sheets."""
+    exemplars), then SHEETS(outdir, log=log) -> [(path, description)] when given (bench/run.py
+    passes bench/contact_sheet.py's make_all)."""
     if not SMALL_EXEMPLARS.is_dir() or not common.TEXMETRICS.exists():
         return ("## Quality: development exemplars scored by texmetrics\n\n"
                 + common.shared_note("the quality section"))
@@ -509,8 +510,7 @@ def run(quick: bool = False, outdir: Path | None = None, jobs: int = 2, sheets: 
     save_json(results, outdir / "results.json")
     sheet_lines = []
     if sheets and not quick:
-        import contact_sheet
-        made = contact_sheet.make_all(outdir, log=log)
+        made = sheets(outdir, log=log)
         sheet_lines = [f"- `{common.rel(p)}`: {what}" for p, what in made]
     elif sheets:
         sheet_lines = ["- not regenerated in quick mode (they need every exemplar and the "
@@ -559,8 +559,6 @@ def main(argv=None) -> int:
     ap.add_argument("--errmap", action="store_true", help="also write <name>_err.png heat maps")
     ap.add_argument("--markdown", action="store_true",
                     help="print the full Markdown section (with the peers' comparison)")
-    ap.add_argument("--sheets", action="store_true",
-                    help="also make the contact sheets from OUTDIR afterwards")
     ap.add_argument("--json", type=Path, help="write every number to this JSON file")
     ap.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     args = ap.parse_args(argv)
@@ -598,12 +596,8 @@ def main(argv=None) -> int:
     results = [evaluate(VARIANTS[v], names, args.outdir, seed=args.seed, jobs=args.jobs,
                         reuse=args.reuse, overlap=args.overlap, errmap=args.errmap,
                         overrides=overrides, log=log) for v in variants]
-    sheet_lines = []
-    if args.sheets:
-        import contact_sheet
-        sheet_lines = [f"- `{p}`: {w}" for p, w in contact_sheet.make_all(args.outdir, log=log)]
     if args.markdown:
-        print(section(results, args.outdir, time.perf_counter() - t0, False, sheet_lines))
+        print(section(results, args.outdir, time.perf_counter() - t0, False, []))
     else:
         for r in results:
             print(f"\n{r.variant.name}: {r.variant.description}"

@@ -82,8 +82,10 @@ def run_synth(args, log) -> str:
 
 
 def run_quality(args, log) -> str:
+    import contact_sheet
     import quality
-    return quality.run(quick=args.quick, outdir=args.quality_dir, jobs=args.jobs, log=log)
+    return quality.run(quick=args.quick, outdir=args.quality_dir, jobs=args.jobs,
+                       sheets=contact_sheet.make_all, log=log)
 
 
 def run_optional(name: str, title: str, args, log) -> str:

@@ -262,9 +262,8 @@ def test_tileable_batch_same_bytes_any_threads(material, osmap_exe, tmp_path):
 
 
 def test_fill_help_lists_the_flags_that_apply(run_cli, repo_root):
-    from osmap_cli.commands.fill_common import OSMAP_ONLY
     from osmap_cli.options import flag, tunables
-    from osmap_cli.synth.options import SynthOptions
+    from osmap_cli.synth.options import NOT_FILL_TUNABLES, SynthOptions
 
     usage = (repo_root / "docs" / "usage.md").read_text()
     for command, own in (("inpaint", "--mask"), ("tileable", "--border")):
@@ -273,7 +272,7 @@ def test_fill_help_lists_the_flags_that_apply(run_cli, repo_root):
         text = " ".join(result.out.split())
         assert own in text and f"osmap {command} " in text and own in usage
         for name in tunables(SynthOptions):
-            assert (flag(name) in text) == (name not in OSMAP_ONLY), (command, name)
+            assert (flag(name) in text) == (name not in NOT_FILL_TUNABLES), (command, name)
 
 
 # --------------------------------------------------------------------------------------------

@@ -36,8 +36,6 @@ NOT_OPTIONS = {
 # file name and not round-tripped by any test yet
 NOT_OPTIONS |= {"bit_depth", "normal", "nrrd_encoding", "preset", "with_maps", "uv_out",
                 "also", "guide", "target_guide", "orientation_field", "scale_field"}
-# tuning flags osmap inpaint / tileable take but do not use (no guided fills): not recorded
-FILL_IGNORES = ("guide_weight",)
 # free-text options (no choices): a valid value other than the default, given here so that a new
 # free-text option fails this test until it is listed
 TEXT_VALUES = {"lattice": "off"}
@@ -169,7 +167,7 @@ def test_fill_options_round_trip(run_cli, workdir, command):
 
     params = _command_params(command)
     values = {k: v for k, v in _synth_values().items()
-              if k in params and k not in OSMAP_ONLY + FILL_IGNORES}
+              if k in params and k not in OSMAP_ONLY}
     extra = ["--mask", "mask.png"] if command == "inpaint" else []
     if command == "tileable":
         border = _fields(FillOptions)["border"]

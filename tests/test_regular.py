@@ -15,6 +15,7 @@ from osmap_cli.synth import SynthOptions, synthesize
 from osmap_cli.synth.atlas import synthesize_several
 from osmap_cli.synth.fill import border_bands, inpaint, make_tileable
 from osmap_cli.synth.lattice import Lattice, find_lattice, parse_lattice
+from osmap_cli.synth.periods import level_stripes
 from osmap_cli.synth.regular import level_lattice
 from osmap_kernels.lattice import lattice_offsets, lattice_snap
 
@@ -56,6 +57,18 @@ def test_the_analysis_reads_2d_lattices_and_stripes():
     assert lines is not None and len(lines.vectors) == 1
     (dy, dx), = lines.vectors
     assert abs(np.hypot(dy, dx) - 10.5) < 0.15 and abs(dx / dy + 0.02) < 0.01, lines
+
+
+def test_stripes_the_image_shows_level_run_along_its_axis():
+    # a slant the autocorrelation's ridges suggest (0.2 px per period: 1.8 px across 96 px)
+    # but the lines do not have: along the rows; a real one of 1.9 px across: kept
+    level = level_stripes(stripes(slope=0.0), (10.5, -0.2))
+    assert tuple(level) == (pytest.approx(10.502, abs=1e-3), 0.0), level
+    slanted = level_stripes(stripes(slope=0.02), (10.5, -0.21))
+    assert tuple(slanted) == (10.5, -0.21)
+    sideways = level_stripes(np.ascontiguousarray(stripes(slope=0.0).transpose(1, 0, 2)),
+                             (0.2, 10.5))
+    assert tuple(sideways) == (0.0, pytest.approx(10.502, abs=1e-3)), sideways
 
 
 def test_no_lattice_in_noise_perspective_or_the_shipped_stochastic_samples(samples):

@@ -23,13 +23,10 @@ from osmap_cli.commands.common import (
     show_progress,
     tuning_flags,
 )
-from osmap_cli.synth.options import QUALITIES, SynthOptions
+from osmap_cli.synth.options import NOT_FILL_TUNABLES, QUALITIES, SynthOptions
+from osmap_cli.synth.options import OSMAP_TUNABLES as OSMAP_ONLY
 
-__all__ = ["NAME_FIELDS", "OSMAP_ONLY", "fill_options", "plan_fill"]
-
-# the OS-Map's tunables: a fill starts from the kept pixels, not from an OS-Map layout
-OSMAP_ONLY = ("window_scale", "som_steps_per_node", "som_sigma_max", "som_sigma_min",
-              "som_alpha_max", "som_alpha_min", "som_anisotropy", "som_range")
+__all__ = ["NAME_FIELDS", "NOT_FILL_TUNABLES", "OSMAP_ONLY", "fill_options", "plan_fill"]
 
 NAME_FIELDS = ("stem", "name", "ext", "parent", "index", "seed", "preset", "quality")
 
@@ -81,7 +78,7 @@ def fill_options(function):
         click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary line."),
         click.option("--verbose", is_flag=True, help="The summary line also says what the "
                      "image's analysis found: the lattice the fill keeps (--lattice)."),
-        tuning_flags(SynthOptions, skip=OSMAP_ONLY),
+        tuning_flags(SynthOptions, skip=NOT_FILL_TUNABLES),
     ]
     for decorate in reversed(decorators):
         function = decorate(function)

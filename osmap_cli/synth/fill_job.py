@@ -18,7 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from osmap_cli.errors import OsmapError
+from osmap_cli.options import flag
 from osmap_cli.synth.job import SynthJob, map_renderer, synth_args
+from osmap_cli.synth.options import NOT_FILL_TUNABLES
 
 __all__ = ["MODES", "FillJob", "fill_args", "read_mask"]
 
@@ -30,7 +32,9 @@ def fill_args(options, preset: str, preset_values: dict | None, bit_depth: int,
     """Canonical `osmap inpaint` / `osmap tileable` flags: synth_args' without --size and
     --tileable (the image sets them), then MORE (--mask NAME, --border N)."""
     args = synth_args(options, preset, preset_values, bit_depth)[2:]
-    return [a for a in args if a != "--tileable"] + list(more)
+    skip = {flag(name) for name in NOT_FILL_TUNABLES}  # flags the fills do not take
+    kept = [a for a, before in zip(args, [None, *args]) if a not in skip and before not in skip]
+    return [a for a in kept if a != "--tileable"] + list(more)
 
 
 @dataclass(frozen=True)

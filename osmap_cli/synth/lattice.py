@@ -152,6 +152,9 @@ def find_lattice(exemplar: np.ndarray, known: np.ndarray | None = None) -> Latti
     if grid is not None and stripes is not None \
             and not periods.beyond_stripes(corr, grid[0], stripes[0], (h, w)):
         grid = None
+    if grid is None and stripes is not None:
+        t = periods.level_stripes(image, stripes[0][0], known)
+        stripes = ((tuple(round(float(c), 2) for c in periods.upper(t)),), stripes[1])
     found = grid if grid is not None else stripes
     if found is None or periods.drift(image, found[0], known) > MAX_DRIFT:
         return None

@@ -18,6 +18,11 @@ from osmap_cli.options import Options, option
 
 METHODS = ("osmap", "paper")
 QUALITIES = ("fast", "default", "high")
+# the tunables `osmap inpaint` and `osmap tileable` do not take: the OS-Map's (a fill starts
+# from the kept pixels, not from an OS-Map layout) and the guide's weight (no target guide)
+OSMAP_TUNABLES = ("window_scale", "som_steps_per_node", "som_sigma_max", "som_sigma_min",
+                  "som_alpha_max", "som_alpha_min", "som_anisotropy", "som_range")
+NOT_FILL_TUNABLES = OSMAP_TUNABLES + ("guide_weight",)
 
 
 @dataclass(frozen=True)
