@@ -183,19 +183,25 @@ def test_a_single_job_raises_its_error_and_reports_no_summary(tmp_path, capsys):
     assert err.splitlines() == ["osmap: warning: small exemplar"]
 
 
+def _first_job_runner(calls: list):
+    """A stand-in for the worker pool or a cluster: notes how it was called (the jobs, -j or
+    the cluster, --fail-fast, --debug), runs the first job here, reports the others not run."""
+
+    def run(jobs, where, fail_fast, debug, report):
+        calls.append((jobs, where, fail_fast, debug))
+        report(run_caught(jobs[0], debug))
+        return len(jobs) - 1
+
+    return run
+
+
 def test_a_cluster_runs_every_job_with_the_run_s_settings(tmp_path, monkeypatch, capsys):
     """--scheduler: every job, even a single one, goes to the cluster with --fail-fast and
     --debug; the jobs it did not run appear in the summary."""
     from osmap_cli import cluster
 
     calls = []
-
-    def run_cluster(jobs, spec, fail_fast, debug, report):
-        calls.append((jobs, spec, fail_fast, debug))
-        report(run_caught(jobs[0], debug))
-        return len(jobs) - 1
-
-    monkeypatch.setattr(cluster, "run_cluster", run_cluster)
+    monkeypatch.setattr(cluster, "run_cluster", _first_job_runner(calls))
     jobs = [_Write("a.png", str(tmp_path / "a.txt"), fails="error"),
             _Write("b.png", str(tmp_path / "b.txt"))]
     assert run_jobs(jobs, fail_fast=True, debug=True, cluster="spec") == 1
@@ -215,13 +221,7 @@ def test_workers_run_the_jobs_in_a_pool_with_the_run_s_settings(tmp_path, monkey
     from osmap_cli import batch
 
     calls = []
-
-    def run_pool(jobs, workers, fail_fast, debug, report):
-        calls.append((jobs, workers, fail_fast, debug))
-        report(run_caught(jobs[0], debug))
-        return len(jobs) - 1
-
-    monkeypatch.setattr(batch, "_run_pool", run_pool)
+    monkeypatch.setattr(batch, "_run_pool", _first_job_runner(calls))
     monkeypatch.setattr(batch.time, "monotonic", lambda: 100.0)
     jobs = [_Write("a.png", str(tmp_path / "a.txt"), fails="error"),
             _Write("b.png", str(tmp_path / "b.txt"))]
