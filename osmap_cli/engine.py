@@ -129,11 +129,16 @@ def _inactive_buckets() -> Buckets:
                    head=np.full(1, -1, np.int64), links=np.empty((3, 0), np.int64))
 
 
+# an eigenvalue of A below _FLAT times its largest is a direction the kernel does not decay along
+_FLAT = 1e-12
+
+
 def _truncation_extent(quad: np.ndarray, cutoff: float) -> np.ndarray:
     """Half-width per axis of {D : exp(-D^T A D / 2) >= cutoff}, max over components: (F, 3).
 
-    Along axis a the ellipse D^T A D <= q reaches sqrt(q (A^-1)_aa); a singular A (a direction
-    with zero weight) reaches infinitely far.
+    Along axis a the ellipse D^T A D <= q reaches sqrt(q (A^-1)_aa). A direction of zero weight
+    (an eigenvalue of A that is 0, or a round-off +-1e-17 when the frame is rotated, where the
+    inverse would be garbage) reaches infinitely far along every axis it is not perpendicular to.
     """
     f, d = quad.shape[:2]
     if cutoff <= 0.0:
@@ -147,11 +152,15 @@ def _truncation_extent(quad: np.ndarray, cutoff: float) -> np.ndarray:
                 used = [b for b in range(3) if np.any(quad[fi, k, b] != 0) or b == a]
                 sub = quad[fi, k][np.ix_(used, used)]
                 idx = used.index(a)
-                try:
-                    inv = np.linalg.inv(sub)
-                    e = np.sqrt(max(q * inv[idx, idx], 0.0))
-                except np.linalg.LinAlgError:
+                lam, vec = np.linalg.eigh(sub)
+                along = vec[idx] ** 2
+                flat = lam <= _FLAT * max(lam.max(), 0.0)
+                if np.any(flat & (along > _FLAT)):
                     e = np.inf
+                elif flat.any():  # flat only across axis a
+                    e = np.sqrt(q * np.sum(along[~flat] / lam[~flat]))
+                else:
+                    e = np.sqrt(q * np.linalg.inv(sub)[idx, idx])
                 if not np.isfinite(e) or e > 1e12:
                     e = np.inf
                 extent[fi, a] = max(extent[fi, a], e)

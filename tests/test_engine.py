@@ -133,10 +133,11 @@ def test_local_window_sets_the_scale(window, copies):
     assert appearances(whole.grid_weights()) < 2.0
 
 
-@pytest.mark.parametrize("degrees", [(30.0, 120.0), (10.0, 100.0)])
+@pytest.mark.parametrize("degrees", [(30.0, 120.0), (10.0, 100.0), (-20.0, 70.0)])
 def test_each_component_varies_along_its_own_direction(degrees):
     """Orientation.angles with zero weight across P_k: component k of the trained map varies
-    only along P_k; its structure tensor points there within a degree."""
+    only along P_k; its structure tensor points there within a degree. (-20, 70): a zero weight
+    whose round-off made the kernel's reach 0 (winner-only updates: 98 and 37 degrees)."""
     data = np.random.default_rng(0).random((3000, 2))
     orientation = Orientation.angles(np.radians(degrees), [[1.0, 0.0], [1.0, 0.0]])
     som = OSMap((24, 24), 2, orientation=orientation).init_random(data, 0)
@@ -145,6 +146,21 @@ def test_each_component_varies_along_its_own_direction(degrees):
     for k, expected in enumerate(degrees):
         delta = (gradient_angle(grid[..., k]) - expected + 90.0) % 180.0 - 90.0
         assert abs(delta) < 1.0, (k, delta)
+
+
+def test_a_direction_of_zero_weight_reaches_across_the_whole_map():
+    """Component k's neighbourhood with zero weight across P_k never decays across it: the
+    update reaches the whole map at every angle (a rotated frame leaves a round-off eigenvalue
+    of +-1e-17 that an inverse turns into a reach of 0 or of 1e8), and a weight of 0.25 across
+    reaches sqrt(2 ln(1 / cutoff) (cos^2 + sin^2 / 0.25)) along axis 0."""
+    q = 2.0 * np.log(1e3)
+    for degrees in range(-90, 180, 5):
+        theta = np.radians([degrees, degrees + 90.0])
+        flat = OSMap((16, 16), 2, orientation=Orientation.angles(theta, [[1.0, 0.0]] * 2))
+        assert np.isinf(flat._params.extent[0, 1:]).all(), degrees
+        som = OSMap((16, 16), 1, orientation=Orientation.angles(theta[:1], [[1.0, 0.25]]))
+        c, s = np.cos(theta[0]), np.sin(theta[0])
+        assert som._params.extent[0, 1] == pytest.approx(np.sqrt(q * (c * c + s * s / 0.25)))
 
 
 def test_local_window_restricts_winners():

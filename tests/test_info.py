@@ -66,6 +66,36 @@ def test_info_reproduces_with_maps_uv_and_preset_files(run_cli, workdir):
         assert (workdir / name).read_bytes() == before[name], name
 
 
+@pytest.mark.parametrize("name", ["soft", "fast"])
+def test_info_reproduces_a_solid_made_with_a_preset_file(run_cli, workdir, name):
+    """A preset file is recorded by its file name, whatever its `name` says: a name that is no
+    built-in preset could not be re-run, and a built-in one ("fast") would stand for its own
+    table instead of the file's."""
+    (workdir / "soft.toml").write_text(f'name = "{name}"\n[solid]\niterations = 1\nknn = 1\n'
+                                       "position_weight = 2.0\n")
+    result = run_cli("solid", "cells.png", "-o", "v.nrrd", "--size", "8", "--preset",
+                     "soft.toml", "--quiet")
+    assert result.code == 0, result.err
+    first = (workdir / "v.nrrd").read_bytes()
+    command = _remake(run_cli, "v.nrrd")
+    assert "--preset soft.toml" in command
+    assert (workdir / "v.nrrd").read_bytes() == first, command
+
+
+def test_info_reproduces_a_solid_of_three_exemplars(run_cli, workdir):
+    """--x, --y and --z are recorded by name and given again in their order."""
+    from osmap_cli.imageio import read_image
+
+    write_image(workdir / "turned.png", read_image(workdir / "cells.png").pixels[::-1].copy(), 8)
+    result = run_cli("solid", "--x", "cells.png", "--y", "turned.png", "--z", "cells.png",
+                     "-o", "v.nrrd", "--size", "8", "--preset", "fast", "--quiet")
+    assert result.code == 0, result.err
+    first = (workdir / "v.nrrd").read_bytes()
+    command = _remake(run_cli, "v.nrrd")
+    assert command.startswith("osmap solid --x cells.png --y turned.png --z cells.png -o v.nrrd")
+    assert (workdir / "v.nrrd").read_bytes() == first, command
+
+
 def test_info_prints_provenance(run_cli, workdir):
     assert run_cli("synth", "cells.png", "-o", "o.png", "--size", "32", "--seed", "3",
                    "--preset", "fast", "--quiet").code == 0
@@ -87,13 +117,17 @@ def test_info_reads_nrrd_fields(run_cli, tmp_path):
     path.write_bytes(header.encode() + np.zeros(1, "<f4").tobytes())
     result = run_cli("info", path)
     assert result.code == 0, result.err
-    assert "seed      9" in result.out.replace("  ", " " * 2)
-    assert f"osmap solid marble.png -o {path} --size 1x1x1 --seed 9" in result.out
+    fields = dict(line.split(None, 1) for line in result.out.splitlines())
+    assert fields["seed"] == "9" and fields["exemplar"] == "marble.png"
+    assert fields["command"] == "solid" and fields["args"] == "--size 1x1x1 --seed 9"
+    assert fields["reproduce"] == f"osmap solid marble.png -o {path} --size 1x1x1 --seed 9"
 
 
 def test_info_errors(run_cli, small_samples, tmp_path):
-    result = run_cli("info", small_samples / "cells.png")  # not written by osmap
-    assert result.code == 1 and "no osmap provenance" in result.err
+    foreign = small_samples / "cells.png"  # not written by osmap
+    result = run_cli("info", foreign)
+    assert result.code == 1, result.err
+    assert result.err_lines == [f"osmap: error: {foreign}: no osmap provenance in this file"]
     result = run_cli("info", tmp_path / "missing.png")
-    assert result.code == 1 and "no such file" in result.err
-    assert len(result.err_lines) == 1
+    assert result.code == 1, result.err
+    assert result.err_lines == [f"osmap: error: {tmp_path / 'missing.png'}: no such file"]

@@ -44,6 +44,11 @@ class Demo(Options):
 
 
 @dataclass(frozen=True)
+class FreeText(Options):
+    label: str = option("plain", help="any words", tunable=True)  # no choices: free text
+
+
+@dataclass(frozen=True)
 class Wide(Options):
     """A text tunable first, a long name (wider columns), a huge whole number."""
 
@@ -216,3 +221,4 @@ def test_usage_rows():
         "| `--step-size X` | 1.5 | 0.25 to 8 | step |",
         "| `--kind M` | a | a, b, c | kind |",
     ]
+    assert usage_rows(FreeText) == ["| `--label M` | plain | text | any words |"]

@@ -211,7 +211,7 @@ def test_preset_file_with_a_solid_table(run_cli, exemplar, tmp_path):
     result = _run(run_cli, exemplar, tmp_path / "v.nrrd", "--preset", good)
     assert result.code == 0, result.err
     meta = read_volume(str(tmp_path / "v.nrrd"))[1]
-    assert meta["preset"] == "mine" and '"coarse_iterations": 2' in meta["options"]
+    assert meta["preset"] == "mine.toml" and '"coarse_iterations": 2' in meta["options"]
     bad = tmp_path / "bad.toml"
     bad.write_text("[solid]\nsweeps = 3\n")
     result = _run(run_cli, exemplar, tmp_path / "w.npy", "--preset", bad)

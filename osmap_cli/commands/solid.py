@@ -265,10 +265,14 @@ def solid_command(exemplars, output, out_dir, name_template, jobs, fail_fast, js
 
     plans = _plan_outputs(sets, output, out_dir, name_template, fmt, preview, uv_out, overwrite,
                           options, loaded.name)
+    from osmap_cli.presets import is_preset_path
+
+    # recorded as osmap synth does: a file by its file name (its `name` may be anything)
+    recorded = os.path.basename(preset) if is_preset_path(preset) else loaded.name
     inputs = real_paths(f for _, files in sets for f in files)
     job_list = [SolidJob(
         index=index, exemplar=base, files=files, output=main, kind=kind, options=options,
-        preset=loaded.name, nrrd_encoding=nrrd_encoding, preview=prev, uv_out=uv,
+        preset=recorded, nrrd_encoding=nrrd_encoding, preview=prev, uv_out=uv,
         replace=output is not None or overwrite,
         refused=refusal([main, *(p for p in (uv, prev) if p)], inputs),
         progress=show_progress(quiet, jobs),
