@@ -23,7 +23,9 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
-SHARED = REPO.parent / "shared"
+# ../shared beside the checkout (a worktree one level deeper finds it too)
+SHARED = next((p / "shared" for p in REPO.parents if (p / "shared" / "exemplars").is_dir()),
+              REPO.parent / "shared")
 EXEMPLARS = SHARED / "exemplars" / "small"
 TEXMETRICS = SHARED / "tools" / "texmetrics.py"
 SOLIDLOOK = SHARED / "tools" / "solidlook.py"

@@ -309,15 +309,19 @@ def place_spheres(shape, radii, exclusion, attempts, seed, wrap):
 
 
 @njit(cache=True, inline="always")
-def _shape_value(i, dz, dy, dx, radius, frames, planes, bumps, bump_amp):
+def _shape_value(i, dz, dy, dx, radius, frames, planes, bumps, bump_amp, floor):
     """Signed distance-like value of particle i at offset (dz, dy, dx) from its centre,
     positive inside (voxels): an ellipsoid (frames[i]: rotation with the inverse axis ratios
     folded in) cut by planes (planes[i, k] = unit normal, offset relative to the radius) and
-    modulated by bumps (bumps[i, k] = unit direction, frequency, phase)."""
+    modulated by bumps (bumps[i, k] = unit direction, frequency, phase). Values certainly
+    below `floor` are returned as found without the bumps and planes (cheaper)."""
     q0 = frames[i, 0, 0] * dz + frames[i, 0, 1] * dy + frames[i, 0, 2] * dx
     q1 = frames[i, 1, 0] * dz + frames[i, 1, 1] * dy + frames[i, 1, 2] * dx
     q2 = frames[i, 2, 0] * dz + frames[i, 2, 1] * dy + frames[i, 2, 2] * dx
     rho = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
+    top = radius * (1.0 + bump_amp * np.sqrt(bumps.shape[1])) - rho
+    if top < floor:
+        return top
     bump = 0.0
     if rho > 1e-9 and bump_amp > 0.0:
         for k in range(bumps.shape[1]):
@@ -394,8 +398,10 @@ def render_particles(shape, centres, radii, extents, classes, reaches, frames, p
                                 d2 = dz * dz + dy * dy + dx * dx
                                 lim = extents[j] + gap
                                 if d2 <= lim * lim:
+                                    # values below the runner-up (or far outside) change nothing
+                                    floor = max(s2, -gap - 1.0)
                                     v = _shape_value(j, dz, dy, dx, radii[j], frames, planes,
-                                                     bumps, bump_amp)
+                                                     bumps, bump_amp, floor)
                                     if v > s1 or (v == s1 and j < i1):
                                         s2 = s1
                                         s1, i1 = v, j

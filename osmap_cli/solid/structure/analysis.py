@@ -32,6 +32,30 @@ MIN_DIAMETER = 4.0  # px: finer structure is texture, left to the fill
 MIN_EDGE = 1.4  # profile outlines lie on edges: their mean gradient over the image's
 MAX_SPLIT = 0.12  # split lines may complete a gap network, not make most of it
 FIELD_SEPARATION = 1.3  # between-phase over within-phase colour spread for a phase field
+WORKING_SIDE = 128  # smaller images are analysed enlarged to about this (the thresholds above
+MAX_FACTOR = 4  # are in pixels of this resolution)
+
+
+def working_factor(shape) -> int:
+    """How many times a small image is enlarged before it is read."""
+    return int(np.clip(np.ceil(WORKING_SIDE / max(min(shape[:2]), 1) - 0.25), 1, MAX_FACTOR))
+
+
+def enlarge(image: np.ndarray, factor: int) -> np.ndarray:
+    if factor == 1:
+        return image
+    from osmap_cli.texture.pyramid import resize
+
+    return resize(np.ascontiguousarray(image, np.float32), image.shape[0] * factor,
+                  image.shape[1] * factor)
+
+
+def reduce(labels: np.ndarray, factor: int) -> np.ndarray:
+    """Labels of an enlarged image back at the original size (each pixel's centre sample)."""
+    if factor == 1:
+        return labels
+    off = factor // 2
+    return np.ascontiguousarray(labels[off::factor, off::factor])
 
 
 @dataclass(frozen=True)
@@ -43,13 +67,27 @@ class Reader:
     matrix: tuple = ()  # phases that form the matrix (particles: the other phases)
     network: float | None = None  # black top-hat threshold: darker gaps are matrix too
     split: bool = False  # touching profiles are separated (watershed of the distance map)
+    factor: int = 1  # images are read enlarged this many times
 
     def phases(self, image: np.ndarray, wrap: bool = False) -> np.ndarray:
-        return self.segmenter.labels(image, wrap)
+        """int64 (H, W): the phase of every pixel."""
+        return reduce(self.segmenter.labels(enlarge(image, self.factor), wrap), self.factor)
 
     def particle_mask(self, image: np.ndarray, wrap: bool = False) -> np.ndarray:
         """bool (H, W): particle pixels (profiles' split lines excluded)."""
-        labels = self.phases(image, wrap)
+        return reduce(self._mask(enlarge(image, self.factor), wrap), self.factor)
+
+    def profiles(self, image: np.ndarray, wrap: bool = False) -> ProfileStats:
+        """The particle profiles' statistics, in pixels of `image`."""
+        mask = self.working_mask(enlarge(image, self.factor), wrap)
+        return profile_stats(mask.astype(np.int64), (1,), wrap).scaled(1.0 / self.factor)
+
+    def working_mask(self, image: np.ndarray, wrap: bool = False) -> np.ndarray:
+        """particle_mask of an image already enlarged `factor` times, at that size."""
+        return self._mask(image, wrap)
+
+    def _mask(self, image: np.ndarray, wrap: bool) -> np.ndarray:
+        labels = self.segmenter.labels(image, wrap)
         mask = ~np.isin(labels, np.asarray(self.matrix, np.int64))
         if self.network is not None:
             lum = gaussian_blur(lab(image), self.segmenter.sigma, wrap)[..., 0]
@@ -57,9 +95,6 @@ class Reader:
         if self.split:
             mask &= ~split_lines(mask, wrap)
         return mask
-
-    def profiles(self, image: np.ndarray, wrap: bool = False) -> ProfileStats:
-        return profile_stats(self.particle_mask(image, wrap).astype(np.int64), (1,), wrap)
 
 
 def split_lines(mask: np.ndarray, wrap: bool = False) -> np.ndarray:
@@ -84,7 +119,7 @@ class Analysis:
     spacing: float  # layers: period along the normal (px); 0 when not periodic
     spacing_strength: float
     lattice: tuple
-    profiles: ProfileStats | None = None
+    profiles: ProfileStats | None = None  # in pixels of the enlarged image (reader.factor)
     notes: tuple = field(default=())
 
     def report(self) -> list[str]:
@@ -94,7 +129,7 @@ class Analysis:
                            for i, (f, c) in enumerate(zip(self.fractions, self.colours)))
         lines.append(f"phases: {phases}")
         if self.profiles is not None:
-            p = self.profiles
+            p = self.profiles.scaled(1.0 / self.reader.factor)
             q = p.quantiles()
             lines.append(f"particles: {p.count} profiles, area fraction {100 * p.fraction:.0f} %, "
                          f"diameter median {q[1]:.1f} px (quartiles {q[0]:.1f}-{q[2]:.1f}, "
@@ -114,7 +149,8 @@ class Analysis:
         if self.spacing > 0:
             out["layer_spacing_px"] = round(self.spacing, 2)
         if self.profiles is not None:
-            out["particles"] = {k: round(float(v), 4) for k, v in self.profiles.figures().items()}
+            scaled = self.profiles.scaled(1.0 / self.reader.factor)
+            out["particles"] = {k: round(float(v), 4) for k, v in scaled.figures().items()}
         return out
 
 
@@ -125,7 +161,7 @@ def _hex(colour) -> str:
     return "#" + "".join(f"{int(round(v * 255)):02x}" for v in c)
 
 
-def _particle_candidates(image, seg, labels, lum, wrap):
+def _particle_candidates(image, seg, labels, lum, wrap, factor):
     """(score, Reader, stats) for every way of reading the image as particles in a matrix: each
     colour phase as the matrix, with and without the dark gap network, and the network alone.
     A reading counts when the matrix (with the split lines) percolates, the profiles are many,
@@ -160,7 +196,7 @@ def _particle_candidates(image, seg, labels, lum, wrap):
               and edge >= MIN_EDGE)
         if ok:
             out.append((stats.fraction * stats.solidity * edge,
-                        Reader(seg, matrix, network, split=True), stats))
+                        Reader(seg, matrix, network, True, factor), stats))
     return out
 
 
@@ -172,7 +208,11 @@ def _outline(mask: np.ndarray, wrap: bool) -> np.ndarray:
 
 
 def analyse(image: np.ndarray, wrap: bool = False, phases: int | None = None) -> Analysis:
-    """The structure of one exemplar (float32 (H, W, C) in [0, 1])."""
+    """The structure of one exemplar (float32 (H, W, C) in [0, 1]); a small exemplar is read
+    enlarged (working_factor) and the figures given in its own pixels."""
+    factor = working_factor(image.shape)
+    original = image
+    image = enlarge(image, factor)
     seg = Segmenter.fit(image, phases, wrap)
     labels = seg.labels(image, wrap)
     lum = gaussian_blur(lab(image), seg.sigma, wrap)[..., 0]
@@ -186,23 +226,25 @@ def analyse(image: np.ndarray, wrap: bool = False, phases: int | None = None) ->
     colours = np.array([image[labels == i].mean(0) if (labels == i).any()
                         else np.zeros(image.shape[2]) for i in range(k)])
     common = dict(colours=colours, fractions=fractions, angle=angle, coherence=coherence,
-                  local_coherence=local, spacing=spacing, spacing_strength=strength,
+                  local_coherence=local, spacing=spacing / factor, spacing_strength=strength,
                   lattice=lattice)
+    plain = Reader(seg, factor=factor)
+    small = reduce(labels, factor)
     if coherence >= LAYER_COHERENCE and local >= LAYER_LOCAL:
-        return Analysis("layers", Reader(seg), labels, **common)
+        return Analysis("layers", plain, small, **common)
     if lattice[1] >= LATTICE:
-        return Analysis("none", Reader(seg), labels, notes=("a regular lattice",), **common)
-    candidates = _particle_candidates(image, seg, labels, lum, wrap)
+        return Analysis("none", plain, small, notes=("a regular lattice",), **common)
+    candidates = _particle_candidates(image, seg, labels, lum, wrap, factor)
     if candidates:
         _, reader, stats = max(candidates, key=lambda c: c[0])
-        mask = reader.particle_mask(image, wrap)
+        mask = reader.particle_mask(original, wrap)
         return Analysis("particles", reader, mask.astype(np.int64),
-                        **{**common, "colours": _mask_colours(image, mask),
+                        **{**common, "colours": _mask_colours(original, mask),
                            "fractions": np.array([1 - mask.mean(), mask.mean()])},
                         profiles=stats)
     if _separation(lab(image), labels) >= FIELD_SEPARATION:
-        return Analysis("field", Reader(seg), labels, **common)
-    return Analysis("none", Reader(seg), labels, notes=("no separable phases",), **common)
+        return Analysis("field", plain, small, **common)
+    return Analysis("none", plain, small, notes=("no separable phases",), **common)
 
 
 def _mask_colours(image, mask):

@@ -31,13 +31,15 @@ from osmap_kernels.kopf import (
     KopfSearch,
     fill_positions,
     kopf_average,
+    kopf_cluster,
     position_counts,
 )
 from osmap_kernels.structure_fill import guided_search
 
 MAX_KNN_REFERENCES = 4096
 EPS = 1e-6
-PLANE_AXES = ((0, 1), (0, 2), (1, 2))  # volume dims (z, y, x) spanning family 0, 1, 2's slices
+PLANE_AXES = ((0, 1), (0, 2), (1, 2))
+REGION_VOXELS = 64.0  # volume dims (z, y, x) spanning family 0, 1, 2's slices
 
 
 @dataclass(frozen=True)
@@ -62,6 +64,9 @@ class FillParams:
     colour: float = 1.0
     position: float = 3.0
     r: float = 0.8
+    sharpen: int = 0  # the last `sharpen` iterations of every level take the densest cluster
+    bandwidth: float = 0.25  # ... of proposals within this squared colour distance (x variance)
+    sharpen_finest: bool = False  # ... at the finest level too
 
 
 def distance_guide(labels: np.ndarray, axes, wrap: bool, clip: float) -> np.ndarray:
@@ -192,7 +197,11 @@ def fill(exemplars, ex_of_axis, ex_labels, ex_identity, labels, identity, params
                     counts / expected - 1.0, 0.0))).astype(np.float32)
             cw = ((dist.astype(np.float64) + eps) ** power).astype(np.float32)
             averaged = np.empty_like(vol)
-            kopf_average(pos, cw, imgs, ex_of_axis, weights, avg_p, averaged, source)
+            if it >= p.iterations - p.sharpen and (level > 0 or p.sharpen_finest):
+                kopf_cluster(pos, cw, imgs, ex_of_axis, weights, avg_p,
+                             p.bandwidth * colour_var, 0, True, averaged, source)
+            else:
+                kopf_average(pos, cw, imgs, ex_of_axis, weights, avg_p, averaged, source)
             vol = averaged
             done += 1
             if progress is not None:
@@ -224,8 +233,10 @@ def _identity_colour(vident, ex_identity, exemplars):
 
 def match_phases(voxels: np.ndarray, labels: np.ndarray, exemplars, ex_of_axis, ex_labels,
                  strength: float = 1.0) -> np.ndarray:
-    """voxels with each phase's colours quantile-matched (per channel) to the exemplar pixels of
-    the same phase, `strength` of the way."""
+    """voxels with each phase's colours quantile-matched to the exemplar pixels of the same
+    phase, `strength` of the way: per principal axis of the phase's exemplar colours (matching
+    raw channels one by one would break the colours' correlation: a phase holding dark and red
+    chips would gain teal ones)."""
     out = voxels.copy()
     used = sorted(set(int(e) for e in ex_of_axis))
     for value in np.unique(labels):
@@ -233,12 +244,42 @@ def match_phases(voxels: np.ndarray, labels: np.ndarray, exemplars, ex_of_axis, 
         ref = np.concatenate([exemplars[e][ex_labels[e] == value] for e in used])
         if not len(ref):
             continue
-        vals = voxels[where]
+        vals = voxels[where].astype(np.float64)
+        centre = ref.mean(0)
+        _, vecs = np.linalg.eigh(np.cov((ref - centre).T).reshape(ref.shape[1], ref.shape[1]))
+        src = (vals - centre) @ vecs
+        dst = (ref - centre) @ vecs
         q = (np.arange(len(vals)) + 0.5) / len(vals)
-        matched = np.empty_like(vals)
-        for c in range(vals.shape[1]):
-            order = np.argsort(vals[:, c], kind="stable")
-            matched[order, c] = np.quantile(ref[:, c], q)
+        matched = np.empty_like(src)
+        for c in range(src.shape[1]):
+            order = np.argsort(src[:, c], kind="stable")
+            matched[order, c] = np.quantile(dst[:, c], q)
+        matched = matched @ vecs.T + centre
         out[where] = vals + strength * (matched - vals)
     return out
 
+
+
+def match_regions(voxels: np.ndarray, regions: np.ndarray, targets: np.ndarray,
+                  strength: float = 1.0, lo=None, hi=None) -> np.ndarray:
+    """voxels with every region's mean colour moved to its target (regions int (Z, Y, X),
+    -1: left alone; targets (R, C)): a stone keeps one colour through the whole volume, as its
+    source profile has, while the fill's texture inside it stays. Regions smaller than a
+    window (REGION_VOXELS) move less (their mean is mostly their rim's); the result is kept
+    within lo .. hi per channel."""
+    flat = regions.ravel()
+    keep = flat >= 0
+    if not keep.any():
+        return voxels
+    count = len(targets)
+    vals = voxels.reshape(-1, voxels.shape[-1])
+    area = np.maximum(np.bincount(flat[keep], minlength=count), 1)
+    means = np.stack([np.bincount(flat[keep], vals[keep, c], count) / area
+                      for c in range(vals.shape[1])], 1)
+    weight = strength * np.minimum(1.0, area / REGION_VOXELS)
+    shift = np.zeros_like(vals)
+    shift[keep] = ((targets - means) * weight[:, None])[flat[keep]]
+    out = vals + shift
+    if lo is not None:
+        out = np.clip(out, lo, hi)
+    return out.reshape(voxels.shape).astype(np.float32)

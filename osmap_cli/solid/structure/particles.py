@@ -35,6 +35,8 @@ PROBE_SLICES = 6  # per family, plus the diagonal planes
 DENSE = 0.5  # area fraction above which particles pack as cells
 MIN_GAP, MAX_GAP = 1.5, 6.0  # voxels: thinner walls do not separate cells on a cut
 MAX_STEP = 1.3
+FINAL_GAP = 1.0  # voxels: the least gap between touching particles in a volume
+SOURCE_MIN_AREA = 1  # px: specks too are particles (the fill alone does not make them)
 FITTED = ("fraction", "d50", "d90", "elongation", "solidity")
 
 
@@ -89,7 +91,7 @@ def sources_from(image: np.ndarray, mask: np.ndarray, stats: ProfileStats,
     flat = ids.ravel()
     keep = flat >= 0
     area = np.bincount(flat[keep], minlength=count).astype(np.float64)
-    big = area >= 4
+    big = area >= SOURCE_MIN_AREA
     colours = np.stack([np.bincount(flat[keep], image.reshape(-1, image.shape[2])[keep, c],
                                     count) / np.maximum(area, 1)
                         for c in range(image.shape[2])], 1)
@@ -117,12 +119,14 @@ def _unit(rng, shape):
 
 
 def build(shape, params: ParticleParams, sources: ParticleSources, seed: int,
-          wrap: bool) -> Particles:
-    """The particles of a (Z, Y, X) volume (periodic with wrap)."""
+          wrap: bool, factor: float = 1.0) -> Particles:
+    """The particles of a (Z, Y, X) volume (periodic with wrap); `factor`: the sources and
+    parameters are in pixels of an image `factor` times larger than a voxel (the analysis'
+    working resolution): lengths shrink by it, the number per voxel grows by its cube."""
     rng = np.random.default_rng(seed)
     volume = float(np.prod(shape))
-    n = max(1, int(round(params.density * volume)))
-    d = sources.diameters
+    n = max(1, int(round(params.density * factor ** 3 * volume)))
+    d = sources.diameters / factor
     weights = 1.0 / d
     pick = rng.choice(len(d), n, p=weights / weights.sum())
     mean_d = float(np.exp(np.log(d).mean()))
@@ -139,19 +143,19 @@ def build(shape, params: ParticleParams, sources: ParticleSources, seed: int,
                              rng.uniform(params.cut, 1.0, (n, PLANES, 1))], 2)
     bumps = np.concatenate([_unit(rng, (n, BUMPS)), rng.uniform(2.0, 5.0, (n, BUMPS, 1)),
                             rng.uniform(0, 2 * np.pi, (n, BUMPS, 1))], 2)
+    gap = max(params.gap / factor, FINAL_GAP)
     centres = place_spheres(np.array(shape, np.float64), radii * a, params.exclusion,
                             PLACE_ATTEMPTS, np.uint64(seed), wrap)
     # size classes (halving radii), each searched within its own reach
     extents = radii * a * (1 + params.bumps * math.sqrt(BUMPS))
     level = np.floor(np.log2(radii.max() / radii)).astype(np.int64)
     classes = np.searchsorted(level, np.arange(level.max() + 2), side="left")
-    reaches = np.array([extents[classes[k]] + params.gap + 1.0
-                        for k in range(len(classes) - 1)])
+    reaches = np.array([extents[classes[k]] + gap + 1.0 for k in range(len(classes) - 1)])
     owner = np.empty(shape, np.int32)
     sdf = np.empty(shape, np.float32)
     render_particles(np.array(shape, np.int64), centres, radii, extents,
                      classes.astype(np.int64), reaches, frames, planes, bumps, params.bumps,
-                     params.gap, wrap, owner, sdf)
+                     gap, wrap, owner, sdf)
     return Particles(owner, sdf, pick)
 
 
@@ -210,7 +214,7 @@ def fit(sources: ParticleSources, seed: int, probe: int | None = None, log=None)
     (cells): the number sets the diameters, the gap the fraction."""
     tf = sources.target.figures()
     if probe is None:
-        probe = int(np.clip(5 * max(tf["d90"], 8.0), 48, 80))
+        probe = int(np.clip(4 * max(tf["d90"], 8.0), 40, 72))
     shape = (probe, probe, probe)
     params = initial_params(sources)
     dense = tf["fraction"] > DENSE

@@ -46,6 +46,11 @@ class ProfileStats:
             return np.zeros(len(QUANTILES))
         return np.quantile(self.diameters, QUANTILES)
 
+    def scaled(self, factor: float) -> ProfileStats:
+        """The same profiles measured on an image `factor` times larger (px lengths x factor)."""
+        return ProfileStats(self.fraction, self.count, self.density / factor ** 2,
+                            self.diameters * factor, self.solidity, self.elongation)
+
     def figures(self) -> dict:
         """The compared figures, by name."""
         q = self.quantiles()

@@ -43,14 +43,17 @@ def lab(image: np.ndarray) -> np.ndarray:
     ell = 116 * f[..., 1] - 16
     parts = [ell[..., None]]
     if c >= 3:
-        parts += [500 * (f[..., 0] - f[..., 1])[..., None], 200 * (f[..., 1] - f[..., 2])[..., None]]
+        parts += [500 * (f[..., 0] - f[..., 1])[..., None],
+                  200 * (f[..., 1] - f[..., 2])[..., None]]
     if c in (2, 4):
         parts.append(image[..., -1:].astype(np.float64) * 100.0)
     return np.concatenate(parts, axis=2)
 
 
-def gaussian_blur(image: np.ndarray, sigma: float, wrap: bool = False) -> np.ndarray:
-    """image (H, W, ...) blurred by a separable Gaussian (reflected edges, or wrapped)."""
+def gaussian_blur(image: np.ndarray, sigma: float, wrap: bool = False,
+                  axes=(0, 1)) -> np.ndarray:
+    """image (H, W, ...) blurred by a separable Gaussian along `axes` (reflected edges, or
+    wrapped)."""
     if sigma <= 0:
         return image
     radius = max(1, int(np.ceil(3 * sigma)))
@@ -58,7 +61,7 @@ def gaussian_blur(image: np.ndarray, sigma: float, wrap: bool = False) -> np.nda
     kernel = np.exp(-0.5 * (t / sigma) ** 2)
     kernel /= kernel.sum()
     out = image.astype(np.float64)
-    for axis in (0, 1):
+    for axis in axes:
         n = out.shape[axis]
         idx = np.arange(-radius, n + radius)
         idx = idx % n if wrap else np.abs(idx)
@@ -70,6 +73,11 @@ def gaussian_blur(image: np.ndarray, sigma: float, wrap: bool = False) -> np.nda
             acc += kv * np.take(padded, np.arange(j, j + n), axis=axis)
         out = acc
     return out
+
+
+def smooth_volume(volume: np.ndarray, sigma: float, wrap: bool = False) -> np.ndarray:
+    """float32 (Z, Y, X, ...) blurred by a 3D Gaussian."""
+    return gaussian_blur(volume, sigma, wrap, axes=(0, 1, 2)).astype(np.float32)
 
 
 def kmeans(points: np.ndarray, k: int, seed: int = 0) -> tuple[np.ndarray, float]:

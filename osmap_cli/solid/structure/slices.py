@@ -36,13 +36,16 @@ def oblique_slice(volume: np.ndarray, normal, side: int | None = None, wrap: boo
     """The plane through the volume's centre (shifted `offset` voxels along the normal) with
     the given normal (z, y, x), sampled on a side x side grid of unit spacing: trilinear, or
     nearest (labels). Without wrap the grid is kept inside the volume (side: at most 0.55 of
-    the shortest side, so a diagonal plane's square fits)."""
+    the shortest side, so a diagonal plane's square fits). An offset of magnitude below 1 is a
+    share of the shortest side."""
     shape = np.array(volume.shape[:3], np.float64)
     if side is None:
         side = int(shape.min()) if wrap else max(4, int(0.55 * shape.min()))
     u, v = plane_basis(normal)
     n = np.asarray(normal, np.float64) / np.linalg.norm(normal)
     t = np.arange(side) - (side - 1) / 2.0
+    if abs(offset) < 1:
+        offset *= shape.min()
     centre = shape / 2.0 - 0.5 + offset * n
     pts = centre + t[:, None, None] * u + t[None, :, None] * v  # (side, side, 3)
     if nearest:
