@@ -6,6 +6,8 @@ Sections:
            about 15 min; needs ../shared (skipped with a note when absent)
   surface  bench/bench_surface.py's run() (skipped with a note when the file is absent)
   solid    bench/bench_solid.py's run() (skipped with a note when the file is absent)
+  carve    a 50,000-triangle mesh baked to 2048x2048 from a volume, stages, peak memory
+           against mesh and map size (bench/bench_carve.py), about 3 min
   som      the classic SOM case against MiniSom (bench/bench_som.py), about 20 min
   kernels  OS-Map kernel paths and winner search against window size (bench/bench_kernels.py)
   roofline bytes and flops per kernel against measured bandwidth and flop rate (same file)
@@ -38,13 +40,14 @@ from pathlib import Path
 import common
 from common import BENCH_DIR, REPO_ROOT
 
-SECTIONS = ("synth", "quality", "surface", "solid", "som", "kernels", "roofline", "memory",
+SECTIONS = ("synth", "quality", "surface", "solid", "carve", "som", "kernels", "roofline", "memory",
             "cluster", "large", "compile", "peer")
 MARKER = "<!-- bench-section: {} -->"
 MARKER_RE = re.compile(r"^<!-- bench-section: (\w+) -->\s*$", re.M)
 # For files written before the markers existed: the heading each section starts with.
 HEADING_PREFIX = {"synth": "## Speed", "quality": "## Quality", "surface": "## Surface",
                   "solid": "## Solid", "som": "## Classic SOM", "kernels": "## OS-Map kernels",
+                  "carve": "## Carve",
                   "roofline": "## Roofline", "memory": "## Memory",
                   "cluster": "## Clusters", "large": "## Large outputs", "compile": "## Compile",
                   "peer": "## Against the Resynthesizer"}
@@ -115,6 +118,11 @@ def run_solid(args, log) -> str:
     return run_optional("solid", "Solid", args, log)
 
 
+def run_carve(args, log) -> str:
+    import bench_carve
+    return bench_carve.run(quick=args.quick, log=log)
+
+
 def run_som(args, log) -> str:
     import bench_som
     return bench_som.run(quick=args.quick, log=log)
@@ -156,7 +164,7 @@ def run_peer(args, log) -> str:
 
 
 RUNNERS = {"synth": run_synth, "quality": run_quality, "surface": run_surface,
-           "solid": run_solid, "som": run_som, "kernels": run_kernels,
+           "solid": run_solid, "carve": run_carve, "som": run_som, "kernels": run_kernels,
            "roofline": run_roofline, "memory": run_memory, "cluster": run_cluster,
            "large": run_large, "compile": run_compile, "peer": run_peer}
 

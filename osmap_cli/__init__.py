@@ -29,6 +29,16 @@ A solid texture whose slices along x, y and z look like it (one exemplar per axi
 >>> volume.voxels.shape
 (16, 16, 16, 3)
 
+The volume carved into a mesh (a path, a trimesh.Trimesh or (vertices, faces[, uv])): a texture
+map baked on its UV layout (one is made with xatlas when it has none), an osmap.CarveResult:
+
+>>> square = ([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3]],
+...           [[0, 0], [1, 0], [1, 1], [0, 1]])
+>>> carved = osmap.carve(square, volume.voxels, osmap.CarveOptions(texture_width=32,
+...                      texture_height=32))
+>>> carved.texture.shape
+(32, 32, 3)
+
 A quad grid fitted to points on a surface (here 2000 points of a cylinder), and the map itself:
 
 >>> t, z = np.random.default_rng(0).random((2, 2000))
@@ -60,8 +70,11 @@ _API = {
     "make_tileable": ("osmap_cli.synth.fill", "make_tileable"),
     "synthesize_solid": ("osmap_cli.solid.pipeline", "synthesize_solid"),
     "SolidOptions": ("osmap_cli.solid.options", "SolidOptions"),
-    "SolidResult": ("osmap_cli.solid.pipeline", "SolidResult"),
+    "SolidResult": ("osmap_cli.solid.core", "SolidResult"),
     "render_volume": ("osmap_cli.solid.render", "render_volume"),
+    "carve": ("osmap_cli.carving.bake", "carve"),
+    "CarveOptions": ("osmap_cli.carving.options", "CarveOptions"),
+    "CarveResult": ("osmap_cli.carving.bake", "CarveResult"),
     "fit_surface": ("osmap_cli.surface.fit", "fit_surface"),
     "FitConfig": ("osmap_cli.surface.fit", "FitConfig"),
     "OSMap": ("osmap_cli.engine", "OSMap"),

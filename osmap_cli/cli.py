@@ -43,6 +43,7 @@ LAZY_COMMANDS: dict[str, tuple[str, str, str]] = {
                  "Make a photo tile seamlessly."),
     "solid": ("osmap_cli.commands.solid", "solid_command",
               "Synthesize a solid (3D) texture from a 2D exemplar."),
+    "carve": ("osmap_cli.commands.carve", "carve_command", "Carve a solid texture into a mesh."),
     "apply": ("osmap_cli.commands.apply", "apply_command",
               "Render a saved position map (--uv-out) on another aligned map."),
     "info": ("osmap_cli.commands.info", "info_command",

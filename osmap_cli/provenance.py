@@ -116,6 +116,10 @@ def reproduce_command(meta: dict[str, str], path: str) -> str | None:
     """The command line that writes `path` again (None when the metadata cannot tell)."""
     command = meta.get("command")
     args = shlex.split(meta.get("args", ""))
+    if command == "carve" and "args" in meta:
+        from osmap_cli.carving.job import reproduce
+
+        return reproduce(meta, path)
     if command == "apply" and meta.get("uv") and meta.get("map"):
         return shlex.join(["osmap", "apply", meta["uv"], meta["map"], "-o", path, *args])
     if command not in ("synth", "solid", "inpaint", "tileable") or "args" not in meta:
@@ -146,6 +150,10 @@ def read_provenance(path: str) -> dict[str, str]:
 
             handle.seek(0)
             return read_nrrd_header(handle, path)[1]
+    if path.lower().endswith((".glb", ".gltf", ".obj", ".mtl", ".ply")):
+        from osmap_cli.carving.meshio import read_mesh_provenance
+
+        return read_mesh_provenance(path)
     if path.lower().endswith(".npy"):
         raise OsmapError(f"{path}: .npy files cannot store metadata (no provenance)")
     from osmap_cli.imageio import read_metadata

@@ -8,6 +8,7 @@ ignored, so a write past the limit fails with EFBIG, as on a full disk).
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 import subprocess
@@ -216,3 +217,21 @@ def test_solid_refuses_nan_pixels(run_cli, tmp_path):
     result = run_cli("solid", tmp_path / "nan.exr", "-o", tmp_path / "v.npy", *SOLID)
     assert result.code == 1 and "NaN or infinite" in result.err, result.err
     assert len(result.err_lines) == 1
+
+
+def test_thin_volume_gets_a_coarse_level_small_enough_to_search():
+    """`osmap solid EX --size 8x8x1024` planned a single level (no side of 8 voxels can be
+    halved), whose exhaustive search compared every voxel with every exemplar pixel: over a
+    minute. The plan halves the sides that can be halved, so the coarsest level is as small as a
+    cube's; a cube's plan is unchanged."""
+    from osmap_cli.solid.pipeline import plan_levels
+
+    exemplar = [(128, 128)]
+    shapes = plan_levels(exemplar, (1024, 8, 8), 4)
+    assert shapes == [(1024, 8, 8), (512, 8, 8), (256, 8, 8), (128, 8, 8)]
+    coarsest_exemplar = 16 * 16  # 128 px halved three times
+    assert math.prod(shapes[-1]) * coarsest_exemplar <= 2**21  # was 8 * 8 * 1024 * 128 * 128
+    assert plan_levels(exemplar, (128, 128, 128), 4) == [(128,) * 3, (64,) * 3, (32,) * 3,
+                                                        (16,) * 3]
+    assert plan_levels(exemplar, (16, 64, 40), 4) == [(16, 64, 40), (16, 32, 20), (16, 16, 20)]
+    assert plan_levels(exemplar, (16, 16, 16), 4) == [(16, 16, 16)]

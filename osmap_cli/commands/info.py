@@ -36,7 +36,8 @@ def info_command(path: str, as_json: bool, command_only: bool) -> None:
 
     \b
     FILE is an image osmap wrote (PNG text chunks, EXR header, TIFF/JPEG
-    description) or a NRRD volume ("osmap:KEY:=VALUE" fields). The command
+    description), a NRRD volume ("osmap:KEY:=VALUE" fields) or a mesh osmap
+    carve wrote (glTF asset extras, OBJ/MTL/PLY comments). The command
     names the input files as they were named (no folders): run it where they
     are. A file without osmap metadata is an error (exit 1).
     """

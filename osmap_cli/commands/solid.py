@@ -29,12 +29,12 @@ from osmap_cli.commands.common import (
     show_progress,
     tuning_flags,
 )
-from osmap_cli.solid.job import SolidJob, default_name
-from osmap_cli.solid.options import MAX_SIDE, SolidOptions
+from osmap_cli.solid.formats import FORMATS, NRRD_ENCODINGS, default_name, format_for
+from osmap_cli.solid.job import SolidJob
+from osmap_cli.solid.methods import quality_help
+from osmap_cli.solid.options import MAX_SIDE, QUALITIES, SolidOptions
 
 __all__ = ["solid_command"]
-
-FORMAT_CHOICES = ("npy", "png", "exr", "atlas", "nrrd")
 
 HELP = """Synthesize a solid texture like EXEMPLAR and write it to OUT.
 
@@ -98,7 +98,8 @@ Presets (--preset): a built-in name ('osmap presets --solid' lists them;
 "legacy" select the legacy method), or a TOML
 file with a [solid] table of tunables (osmap solid does not read the
 [synth] presets). Tuning flags (--method, --iterations, ...) override the
-preset; --quality fast|high scales the search on top.
+preset; --quality fast|high then trades speed for quality (what each
+changes for each method: --quality below).
 Memory: the working set is estimated first; a size that does not fit in
 the available memory (or in OSMAP_MEMORY_LIMIT, e.g. 2G) is refused.
 Same inputs, options and seed give the same bytes with any thread count.
@@ -160,6 +161,63 @@ class VolumeSize(click.ParamType):
         return (x, y, z)
 
 
+# The options of the volume synthesized (`osmap carve` synthesizes with them too).
+VOLUME_OPTIONS = (
+    click.option("--size", type=VolumeSize(), default="128", show_default=True,
+                 help="Volume size in voxels: N for NxNxN, or XxYxZ."),
+    click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True,
+                 help="Random seed; the same seed gives the same volume."),
+    click.option("--preset", default="default", show_default=True, metavar="NAME|FILE.toml",
+                 help="Solid preset: a built-in name (see 'osmap presets --solid') or a TOML "
+                      "file with [solid]."),
+    click.option("--quality", type=click.Choice(QUALITIES), default="default", show_default=True,
+                 help="Speed / quality trade-off on top of the preset, per method: "
+                 f"{quality_help()}."),
+    click.option("--tileable", is_flag=True, help="The volume wraps around in x, y and z."),
+    click.option("--orientation", type=Angles(), default="0,0,0", show_default=True,
+                 help="Turn the material: degrees about x, then y, then z (the grain along "
+                      "any 3D direction). Not with --tileable."),
+    click.option("--x", "ex_x", type=click.Path(path_type=str), default=None, metavar="FILE",
+                 help="Exemplar for the slices normal to x (rows z, cols y)."),
+    click.option("--y", "ex_y", type=click.Path(path_type=str), default=None, metavar="FILE",
+                 help="Exemplar for the slices normal to y (rows z, cols x)."),
+    click.option("--z", "ex_z", type=click.Path(path_type=str), default=None, metavar="FILE",
+                 help="Exemplar for the slices normal to z (rows y, cols x)."),
+)
+VOLUME_PARAMS = ("size", "seed", "preset", "quality", "tileable", "orientation", "ex_x", "ex_y",
+                 "ex_z")
+
+
+def volume_options(function):
+    """Add VOLUME_OPTIONS (--size, --seed, --preset, --quality, --tileable, --orientation,
+    --x, --y, --z, in that order) to a command."""
+    for decorator in reversed(VOLUME_OPTIONS):
+        function = decorator(function)
+    return function
+
+
+def volume_settings(size, seed, preset, quality, tileable, orientation, tuning):
+    """(validated SolidOptions, loaded preset) of the volume options and tuning flags."""
+    loaded = load_preset(preset, "solid")
+    x, y, z = size
+    options = resolve_options(SolidOptions, loaded.values,
+                              {"width": x, "height": y, "depth": z, "seed": seed,
+                               "quality": quality, "tileable": tileable,
+                               "rotate_x": orientation[0], "rotate_y": orientation[1],
+                               "rotate_z": orientation[2]}, tuning)
+    return options, loaded
+
+
+def axis_set(base, ex_x, ex_y, ex_z, label="EXEMPLAR"):
+    """(base, (x, y, z) files) of one --x/--y/--z set, the axes not given taking BASE (which
+    may be None when all three are given); a usage error otherwise."""
+    axis_files = [ex_x, ex_y, ex_z]
+    if base is None and None in axis_files:
+        raise click.UsageError(f"give {label}, or all three of --x, --y and --z")
+    base = base if base is not None else ex_x
+    return base, tuple(f if f is not None else base for f in axis_files)
+
+
 @click.command("solid", help=HELP, epilog=EPILOG,
                short_help="Synthesize a solid (3D) texture.",
                context_settings=CONTEXT_SETTINGS)
@@ -174,29 +232,11 @@ class VolumeSize(click.ParamType):
               help="Output name in --out-dir (fields above). [default: {stem}.{ext}; "
               "{stem} for slice folders]")
 @batch_options
-@click.option("--size", type=VolumeSize(), default="128", show_default=True,
-              help="Volume size in voxels: N for NxNxN, or XxYxZ.")
-@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True,
-              help="Random seed; the same seed gives the same volume.")
-@click.option("--preset", default="default", show_default=True, metavar="NAME|FILE.toml",
-              help="Solid preset: a built-in name (see 'osmap presets --solid') or a TOML file "
-                   "with [solid].")
-@click.option("--quality", type=click.Choice(("fast", "default", "high")), default="default",
-              show_default=True, help="Speed / quality trade-off on top of the preset.")
-@click.option("--tileable", is_flag=True, help="The volume wraps around in x, y and z.")
-@click.option("--orientation", type=Angles(), default="0,0,0", show_default=True,
-              help="Turn the material: degrees about x, then y, then z (the grain along "
-                   "any 3D direction). Not with --tileable.")
-@click.option("--x", "ex_x", type=click.Path(path_type=str), default=None, metavar="FILE",
-              help="Exemplar for the slices normal to x (rows z, cols y).")
-@click.option("--y", "ex_y", type=click.Path(path_type=str), default=None, metavar="FILE",
-              help="Exemplar for the slices normal to y (rows z, cols x).")
-@click.option("--z", "ex_z", type=click.Path(path_type=str), default=None, metavar="FILE",
-              help="Exemplar for the slices normal to z (rows y, cols x).")
-@click.option("--format", "fmt", type=click.Choice(FORMAT_CHOICES), default=None,
+@volume_options
+@click.option("--format", "fmt", type=click.Choice(tuple(FORMATS)), default=None,
               help="Output format [default: from OUT's (or --name's) extension; a folder: png "
               "slices; --out-dir with the default --name: npy].")
-@click.option("--nrrd-encoding", type=click.Choice(("raw", "gzip")), default="raw",
+@click.option("--nrrd-encoding", type=click.Choice(NRRD_ENCODINGS), default="raw",
               show_default=True, help="Data encoding of a NRRD output.")
 @click.option("--preview", type=click.Path(path_type=str), default=None, metavar="FILE.png",
               help="Also write a preview: the cube in isometric view and its centre slices. "
@@ -211,22 +251,13 @@ def solid_command(exemplars, output, out_dir, name_template, jobs, fail_fast, js
                   tileable, orientation, ex_x, ex_y, ex_z, fmt, nrrd_encoding, preview, uv_out,
                   quiet, **tuning):
     cluster = cluster_spec(scheduler, scheduler_file, threads, jobs)
-    loaded = load_preset(preset, "solid")
-    x, y, z = size
-    options = resolve_options(SolidOptions, loaded.values,
-                              {"width": x, "height": y, "depth": z, "seed": seed,
-                               "quality": quality, "tileable": tileable,
-                               "rotate_x": orientation[0], "rotate_y": orientation[1],
-                               "rotate_z": orientation[2]}, tuning)
+    options, loaded = volume_settings(size, seed, preset, quality, tileable, orientation,
+                                      tuning)
 
-    axis_files = [ex_x, ex_y, ex_z]
-    if any(f is not None for f in axis_files):
+    if any(f is not None for f in (ex_x, ex_y, ex_z)):
         if len(exemplars) > 1 or "-" in exemplars:
             raise click.UsageError("--x/--y/--z make one volume: give at most one EXEMPLAR")
-        if not exemplars and None in axis_files:
-            raise click.UsageError("give EXEMPLAR, or all three of --x, --y and --z")
-        base = exemplars[0] if exemplars else ex_x
-        sets = [(base, tuple(f if f is not None else base for f in axis_files))]
+        sets = [axis_set(exemplars[0] if exemplars else None, ex_x, ex_y, ex_z)]
     elif not exemplars:
         raise click.UsageError("give EXEMPLAR, or all three of --x, --y and --z")
     else:
@@ -248,8 +279,6 @@ def solid_command(exemplars, output, out_dir, name_template, jobs, fail_fast, js
 def _plan_outputs(sets, output, out_dir, name_template, fmt, preview, uv_out, overwrite,
                   options, preset_name):
     """[(volume output, format, preview, uv output)] per job, checked before any work."""
-    from osmap_cli.solid import volumeio
-
     for flag, path, ext in (("--preview", preview, ".png"), ("--uv-out", uv_out, ".npy")):
         if path is not None and os.path.splitext(path)[1].lower() != ext:
             raise click.BadParameter(f"{path}: must be a {ext} file", param_hint=f"'{flag}'")
@@ -271,7 +300,7 @@ def _plan_outputs(sets, output, out_dir, name_template, fmt, preview, uv_out, ov
                                                        "'--name'"))
             prev, uv = (os.path.join(out_dir, fill_template(p, fields, hint)) if p else None
                         for p, hint in ((preview, "'--preview'"), (uv_out, "'--uv-out'")))
-        kind = volumeio.format_for(main, fmt)
+        kind = format_for(main, fmt)
         targets = [os.path.abspath(main.rstrip("/" + os.sep))]
         for flag, path in (("--preview", prev), ("--uv-out", uv)):
             if path is None:

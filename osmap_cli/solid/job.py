@@ -12,13 +12,7 @@ from dataclasses import dataclass
 from osmap_cli.batch import Job
 from osmap_cli.errors import OsmapError
 
-__all__ = ["SolidJob", "default_name"]
-
-
-def default_name(kind: str) -> tuple[str, str]:
-    """(default --name template, the {ext} field) for an output format."""
-    ext = {"npy": "npy", "nrrd": "nrrd", "atlas": "png", "png": "png", "exr": "exr"}[kind]
-    return ("{stem}" if kind in ("png", "exr") else "{stem}.{ext}"), ext
+__all__ = ["SolidJob"]
 
 
 @dataclass(frozen=True)

@@ -15,9 +15,9 @@ from dataclasses import dataclass
 
 from osmap_cli.errors import OsmapError
 from osmap_cli.options import Options, option
+from osmap_cli.solid.methods import METHODS, method_help
 
 QUALITIES = ("fast", "default", "high")
-METHODS = ("osmap", "kopf", "legacy")
 MAX_SIDE = 1024
 
 
@@ -36,13 +36,9 @@ class SolidOptions(Options):
     rotate_y: float = option(0.0, -360.0, 360.0, "the material turned about y, degrees")
     rotate_z: float = option(0.0, -360.0, 360.0, "the material turned about z, degrees")
     # --- tunables (solid preset keys and tuning flags) ---
-    method: str = option("osmap", help="osmap: the OS-Map lays out the coarsest volume, then a "
-                         "sharpened Kopf optimisation; kopf: Kopf et al. 2007 texture "
-                         "optimisation as published (softer, features too large); legacy: the "
-                         "search + mode pipeline before issue 13 (boxy)", choices=METHODS,
-                         tunable=True)
-    levels: int = option(4, 1, 8, "pyramid levels (the coarsest volume keeps >= 16 voxels a "
-                         "side)", tunable=True)
+    method: str = option("osmap", help=method_help(), choices=tuple(METHODS), tunable=True)
+    levels: int = option(4, 1, 8, "pyramid levels (a volume side is halved while it keeps >= "
+                         "16 voxels, the exemplar while its sides do)", tunable=True)
     patch_radius: int = option(2, 1, 4, "in-plane matching window half-size", tunable=True)
     iterations: int = option(3, 1, 20, "search + colour iterations per finer level",
                              tunable=True)
@@ -85,7 +81,7 @@ class SolidOptions(Options):
     som_anisotropy: float = option(0.25, 0.0, 1.0, "kernel weight across / along each component",
                                    tunable=True)
 
-    # --- methods osmap and kopf (texture optimisation, osmap_cli/solid/kopf.py) ---
+    # --- methods osmap and kopf (texture optimisation, osmap_cli/solid/optimise.py) ---
     kopf_window: int = option(8, 4, 16, "window side n of the slice neighbourhoods (n x n)",
     tunable=True)
     kopf_iterations: int = option(4, 1, 20, "search + optimisation iterations per level",
@@ -166,16 +162,3 @@ class SolidOptions(Options):
         if big > MAX_SIDE:
             raise OsmapError(f"--orientation: this turn needs a {big}-voxel side of axis-aligned "
                              f"material (at most {MAX_SIDE}); make the volume smaller")
-
-    def with_quality(self) -> SolidOptions:
-        """The tunables adjusted for --quality (fast: less search; high: more)."""
-        if self.quality == "fast":
-            return self.replace(iterations=1,
-                                coarse_iterations=max(1, self.coarse_iterations // 2),
-                                knn=min(self.knn, 1),
-                                random_candidates=min(self.random_candidates, 1))
-        if self.quality == "high":
-            return self.replace(iterations=self.iterations + 1,
-                                coarse_iterations=self.coarse_iterations + 2,
-                                knn=self.knn + 2, random_candidates=self.random_candidates + 2)
-        return self

@@ -1,6 +1,6 @@
 """Volume files: write and read a (Z, Y, X, C) float32 volume.
 
-Formats (`FORMATS`):
+Formats (osmap_cli.solid.formats.FORMATS):
 - ``npy``: the float32 array as is (NumPy cannot store metadata: no provenance);
 - ``png`` / ``exr``: a folder of numbered slices ``slice_0000.png`` ... (one per z), PNG 8-bit
   (16-bit for a 16-bit or float exemplar), EXR 32-bit float; provenance in every slice;
@@ -26,34 +26,18 @@ import numpy as np
 
 from osmap_cli.errors import OsmapError
 from osmap_cli.output import check_parent, synced_file, write_bytes
+from osmap_cli.solid.formats import SLICE_FOLDERS, format_for
 
-FORMATS = ("npy", "png", "exr", "atlas", "nrrd")
-NRRD_ENCODINGS = ("raw", "gzip")
 SLICE_PATTERN = re.compile(r"slice_(\d+)\.(png|exr)$")
 ATLAS_GRID = re.compile(r"_(\d+)x(\d+)$")
 META_PREFIX = "osmap:"
-
-
-def format_for(path: str, fmt: str | None) -> str:
-    """The output format: --format if given, else by OUT's extension (no extension: PNG
-    slices in a folder)."""
-    if fmt is not None:
-        if fmt not in FORMATS:
-            raise OsmapError(f"--format: {fmt!r} is not one of {', '.join(FORMATS)}")
-        return fmt
-    ext = os.path.splitext(path.rstrip("/" + os.sep))[1].lower()
-    by_ext = {".npy": "npy", ".nrrd": "nrrd", ".png": "atlas", "": "png"}
-    if ext not in by_ext:
-        raise OsmapError(f"{path}: unsupported volume output ({ext}); use .npy, .nrrd, .png "
-                         "(atlas), a folder without extension (PNG slices), or --format")
-    return by_ext[ext]
 
 
 def check_target(path: str, fmt: str) -> None:
     """Refuse a path that cannot receive this format, before any work."""
     fspath = path.rstrip("/" + os.sep) or path
     check_parent(path)
-    if fmt in ("png", "exr"):
+    if fmt in SLICE_FOLDERS:
         if os.path.isfile(fspath):
             raise OsmapError(f"{path}: is a file; slices need a folder")
         if os.path.isdir(fspath):

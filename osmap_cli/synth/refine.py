@@ -9,6 +9,7 @@ import numpy as np
 from osmap_cli.synth.options import SynthOptions
 from osmap_cli.texture.features import feature_variance
 from osmap_cli.texture.occupancy import occupancy
+from osmap_cli.texture.references import SYNTH_REFERENCES as MAX_KNN_REFERENCES
 from osmap_cli.texture.references import similar_positions
 from osmap_kernels.coherence import RefineParams, refine_pass, usage_counts
 from osmap_kernels.regions import AlignParams, align_regions, copy_region_areas
@@ -16,10 +17,6 @@ from osmap_kernels.regions import AlignParams, align_regions, copy_region_areas
 # Whole-copy shifts are judged on the 3x3 neighbourhoods across a copy's border: as good as the
 # matching window (5x5) on the 11 development exemplars, at a quarter of the cost.
 ALIGN_RADIUS = 1
-# Positions each exemplar pixel is compared with to find its k-NN (a grid of them): 2048 scores
-# as 4096 on the development exemplars (geometric-mean coh_mean 1.383 against 1.381) in 2/3 of
-# the time.
-MAX_KNN_REFERENCES = 2048
 # guide cost of a whole mismatch (guide difference 1) at guide_weight 1, in window feature
 # variances: 0.75 times a random window's expected SSD (2 variances). On the two-material test
 # (tests/test_guide.py, seeds 1-3) weight 1 keeps 97-100 % of each half in its material with

@@ -28,15 +28,26 @@ def appearance_features(images, dims: int = 8, radius: int = 2) -> list[np.ndarr
     vectors = [neighbourhood_vectors(np.asarray(im, np.float32), radius) for im in images]
     n = vectors[0].shape[2]
     flat = np.concatenate([v.reshape(-1, n) for v in vectors]).astype(np.float64)
-    mean = flat.mean(axis=0)
-    centred = flat - mean
-    cov = centred.T @ centred / max(len(flat) - 1, 1)
-    _, eigvec = np.linalg.eigh(cov)
-    basis = eigvec[:, ::-1][:, :min(dims, n)]
-    # fix each axis' sign so features are reproducible across LAPACK builds
-    basis *= np.where(basis[np.abs(basis).argmax(axis=0), range(basis.shape[1])] < 0, -1, 1)
+    basis, mean = pca_basis(flat, dims)
     return [((v.reshape(-1, n) - mean) @ basis).reshape(*v.shape[:2], -1).astype(np.float32)
             for v in vectors]
+
+
+def pca_basis(vectors: np.ndarray, dims: int, *, max_samples: int = 0, seed: int = 0):
+    """(basis (n, dims'), mean (n,)) float64: the principal axes of vectors (N, n) float64,
+    largest variance first, dims' = min(dims, n), each axis' sign fixed (its largest component
+    positive) so that features are reproducible across LAPACK builds. max_samples > 0: fitted on
+    at most that many vectors, drawn without replacement with `seed` (kept in their order)."""
+    if 0 < max_samples < len(vectors):
+        pick = np.random.default_rng(seed).choice(len(vectors), max_samples, replace=False)
+        vectors = vectors[np.sort(pick)]
+    mean = vectors.mean(axis=0)
+    centred = vectors - mean
+    cov = centred.T @ centred / max(len(vectors) - 1, 1)
+    _, eigvec = np.linalg.eigh(cov)
+    basis = eigvec[:, ::-1][:, :min(dims, cov.shape[0])]
+    basis *= np.where(basis[np.abs(basis).argmax(axis=0), range(basis.shape[1])] < 0, -1, 1)
+    return basis, mean
 
 
 def feature_variance(feats, dtype=np.float64) -> float:

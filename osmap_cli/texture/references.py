@@ -12,6 +12,14 @@ from osmap_kernels.coherence import knn_table
 # positions within this many pixels of the pixel itself are not "similar positions"
 EXCLUDE = 2
 
+# The reference grid's size (`max_references`), one per use:
+# - synth (osmap_cli.synth.refine): 2048 scores as 4096 on the development exemplars
+#   (geometric-mean coh_mean 1.383 against 1.381) in 2/3 of the time;
+# - solid (every method's level core, osmap_cli.solid.core): 4096, the grid the solid figures
+#   (docs/solid.md, BENCHMARKS.md) are measured with; 2048 is not measured there.
+SYNTH_REFERENCES = 2048
+SOLID_REFERENCES = 4096
+
 
 def similar_positions(feat: np.ndarray, lo, hi, k: int, max_references: int) -> np.ndarray:
     """int32 (h, w, max(k, 1), 2): for each pixel of feat (h, w, F), the k positions that look
