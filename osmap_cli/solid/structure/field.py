@@ -26,7 +26,7 @@ from osmap_cli.solid.structure.slices import axis_slices
 
 MAX_ANISOTROPY = 4.0
 FIT_ROUNDS = 3
-LATENT_SIGMA = 1.5  # px: the phases' layout, not the texture inside them, sets the covariance
+LATENT_SIGMA = 2.0  # px: the phases' layout, not the texture inside them, sets the covariance
 PROBE = 64
 
 
@@ -59,23 +59,18 @@ def phase_order(labels: np.ndarray, phases: int) -> tuple:
 
 
 def latent(image: np.ndarray, labels: np.ndarray, order, wrap: bool = False) -> np.ndarray:
-    """float64 (H, W): every pixel's position along the polyline of the ordered phase colours
-    (CIELAB, smoothed), Gaussianised by rank."""
-    feats = gaussian_blur(lab(image), LATENT_SIGMA, wrap)
+    """float64 (H, W): the phases' rank in `order` at every pixel, smoothed (the layout of the
+    phases, not the texture inside them), ties broken by the colour's position along the
+    ordered phase colours; Gaussianised by rank."""
+    rank = np.empty(int(labels.max()) + 1)
+    rank[list(order)] = np.arange(len(order))
+    smooth = gaussian_blur(rank[labels][..., None], LATENT_SIGMA, wrap)[..., 0]
+    feats = gaussian_blur(lab(image), 0.8, wrap)
     flat = feats.reshape(-1, feats.shape[2])
     centres = np.array([flat[labels.ravel() == k].mean(0) for k in order])
-    best = np.full(len(flat), np.inf)
-    pos = np.zeros(len(flat))
-    done = 0.0
-    for i in range(len(centres) - 1):
-        seg = centres[i + 1] - centres[i]
-        length = max(float(np.linalg.norm(seg)), 1e-9)
-        t = np.clip((flat - centres[i]) @ seg / length ** 2, 0.0, 1.0)
-        d = ((flat - centres[i] - t[:, None] * seg) ** 2).sum(1)
-        take = d < best
-        best[take] = d[take]
-        pos[take] = done + t[take] * length
-        done += length
+    axis = centres[-1] - centres[0]
+    tie = flat @ axis / max(float(axis @ axis), 1e-9)
+    pos = smooth.ravel() + 1e-3 * (tie - tie.min()) / max(np.ptp(tie), 1e-9)
     ranks = np.argsort(np.argsort(pos, kind="stable"), kind="stable")
     nd = NormalDist()
     z = np.array([nd.inv_cdf((r + 0.5) / len(ranks)) for r in range(len(ranks))])[ranks]

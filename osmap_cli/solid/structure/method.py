@@ -1,11 +1,12 @@
-"""The structure-first solid method: analyse the exemplars, build the 3D structure they show
-(particles, layers or a phase field), then fill in the appearance with the guided slice-window
-optimisation. Exemplars with none of these structures are left to the slice optimisation
-(`plan(...).kind == "none"`).
+"""The structure-first solid method's steps before and after the fill: analyse the exemplars
+and fit a model of the 3D structure they show (particles, layers or a phase field), build that
+structure for a volume, and finally match each phase's colours to the exemplar's. Exemplars
+with none of these structures are left to the slice optimisation (`plan(...).kind == "none"`).
 
->>> found = plan([image], np.zeros(3, np.int64), StructureOptions())
+>>> found = plan([image], np.zeros(3, np.int64))
 >>> found.report()
->>> voxels, source, timings = synthesize(found, shape, StructureOptions(), seed=1, wrap=False)
+>>> built = build_structure(found, (64, 64, 64), seed=1, wrap=False)
+>>> voxels = finish(filled_voxels, found, built, strength=1.0)
 """
 
 from __future__ import annotations
@@ -16,42 +17,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from osmap_cli.errors import OsmapError
-from osmap_cli.options import Options, option
 from osmap_cli.solid.structure import analysis as an
 from osmap_cli.solid.structure import field as fd
 from osmap_cli.solid.structure import layers as ly
 from osmap_cli.solid.structure import particles as pt
-from osmap_cli.solid.structure.fill import FillParams, fill, match_phases, match_regions
+from osmap_cli.solid.structure.fill import match_phases, match_regions
 from osmap_cli.solid.structure.profiles import profile_ids
 from osmap_cli.solid.structure.segment import Segmenter, smooth_volume
 
-STRUCTURES = ("auto", "particles", "layers", "field", "none")
-CORRECTION_SIGMA = 0.6  # voxels
-LAYOUTS = ("osmap", "random")
-
-
-@dataclass(frozen=True)
-class StructureOptions(Options):
-    """The structure method's own tunables (solid preset keys and tuning flags)."""
-
-    structure: str = option("auto", help="the structure built: auto (the analysis decides), "
-                            "particles, layers, field, or none (the slice optimisation alone)",
-                            choices=STRUCTURES, tunable=True)
-    phases: int = option(0, 0, 6, "colour phases of the segmentation (0: chosen from the "
-                         "exemplar, 2 to 4)", tunable=True)
-    fill_levels: int = option(3, 1, 5, "pyramid levels of the guided fill", tunable=True)
-    fill_window: int = option(6, 4, 12, "slice window side of the guided fill", tunable=True)
-    fill_iterations: int = option(4, 1, 12, "search + average iterations per level",
-                                  tunable=True)
-    guide_weight: float = option(1.0, 0.0, 10.0, "weight of the structure guide channels "
-                                 "against the colours in the window search", tunable=True)
-    guide_clip: float = option(4.0, 1.0, 32.0, "pixels from a phase boundary at which the "
-                               "distance guide saturates", tunable=True)
-    layout: str = option("osmap", help="the fill's coarsest positions: osmap (the OS-Map's "
-                         "layout) or random", choices=LAYOUTS, tunable=True)
-    phase_match: float = option(1.0, 0.0, 1.0, "how far each phase's colours are moved to the "
-                                "exemplar's colours of that phase (quantile mapping)",
-                                tunable=True)
+COVERAGE_SIGMA = 0.5  # voxels: layers' and fields' phase boundaries antialiased this much
 
 
 @dataclass
@@ -108,16 +82,17 @@ class Plan:
         return out
 
 
-def plan(exemplars, ex_of_axis, options: StructureOptions, seed: int = 0,
+def plan(exemplars, ex_of_axis, structure: str = "auto", phases: int = 0, seed: int = 0,
          wrap: bool = False) -> Plan:
     """Analyse the exemplars (one per distinct exemplar, ex_of_axis: which one each slice
-    family shows) and fit the structure model."""
+    family shows) and fit the model of the structure `structure` (auto: the one the analysis
+    finds); `phases`: colour phases of the segmentation (0: chosen from the exemplar)."""
     started = time.perf_counter()
     images = [np.ascontiguousarray(im, np.float32) for im in exemplars]
-    phases = options.phases or None
+    phases = phases or None
     analyses = [an.analyse(im, wrap, phases) for im in images]
     kinds = [a.kind for a in analyses]
-    chosen = options.structure
+    chosen = structure
     notes = []
     if chosen == "auto":
         if kinds.count("layers") >= max(1, (len(kinds) + 1) // 2):
@@ -206,10 +181,22 @@ def _plan_particles(result: Plan, analyses, images, seed, wrap) -> None:
                                            matrix).astype(np.float32))
 
 
-def build_structure(found: Plan, shape, seed: int, wrap: bool):
-    """(labels int64 (Z, Y, X), identity float32 (Z, Y, X, C), regions int64 (Z, Y, X) or
-    None, region colours (R, C) or None) of the volume: particles are regions of one colour
-    each (their source profile's)."""
+@dataclass(frozen=True)
+class Built:
+    """A volume's structure: labels int64 (Z, Y, X) (the phase of every voxel); identity float32
+    (Z, Y, X, I) (the guide's identity channels); coverage float32 (Z, Y, X, K): every phase's
+    share of each voxel (antialiased boundaries); regions int64 (Z, Y, X) with their colours
+    (R, C) when the phases hold regions of one colour each (particles), else None."""
+
+    labels: np.ndarray
+    identity: np.ndarray
+    coverage: np.ndarray
+    regions: np.ndarray | None = None
+    region_colours: np.ndarray | None = None
+
+
+def build_structure(found: Plan, shape, seed: int, wrap: bool) -> Built:
+    """The volume's structure (particles: each a region of its source profile's colour)."""
     if found.kind == "particles":
         sources, params, factor = found.model
         built = pt.build(shape, params, sources, seed, wrap, factor)
@@ -217,35 +204,29 @@ def build_structure(found: Plan, shape, seed: int, wrap: bool):
         colours = sources.colours[built.source]
         identity = np.where(inside[..., None], colours[np.maximum(built.owner, 0)],
                             found.matrix_colour)
-        return (inside.astype(np.int64), identity.astype(np.float32),
-                built.owner.astype(np.int64), colours)
+        share = np.clip(0.5 + built.sdf, 0.0, 1.0)  # the particle's share of the voxel
+        return Built(inside.astype(np.int64), identity.astype(np.float32),
+                     np.stack([1.0 - share, share], -1).astype(np.float32),
+                     built.owner.astype(np.int64), colours)
     if found.kind == "layers":
         labels = ly.build_layers(shape, found.model, seed, wrap)
     else:
         labels = fd.build_field(shape, found.model, seed, wrap)
-    return labels, found.colours[labels].astype(np.float32), None, None
+    k = len(found.colours)
+    onehot = (labels[..., None] == np.arange(k)).astype(np.float32)
+    coverage = smooth_volume(onehot, COVERAGE_SIGMA, wrap)
+    return Built(labels, found.colours[labels].astype(np.float32), coverage)
 
 
-def synthesize(found: Plan, shape, options: StructureOptions, seed: int, wrap: bool,
-               layout=None, progress=None):
-    """(voxels float32 (Z, Y, X, C), source int32 (Z, Y, X, 3), seconds of the structure
-    step): build the structure, fill it, match each phase's colours."""
-    started = time.perf_counter()
-    labels, identity, regions, region_colours = build_structure(found, shape, seed, wrap)
-    structure_seconds = found.seconds + time.perf_counter() - started
-    params = FillParams(seed=seed, wrap=wrap, levels=options.fill_levels,
-                        window=options.fill_window, iterations=options.fill_iterations,
-                        clip=options.guide_clip, guide_weight=options.guide_weight)
-    voxels, source = fill(found.images, found.ex_of_axis, found.ex_labels, found.ex_identity,
-                          labels, identity, params, layout=layout, progress=progress)
-    if options.phase_match > 0:
-        matched = match_phases(voxels, labels, found.images, found.ex_of_axis,
-                               found.ex_labels, options.phase_match)
-        if regions is not None:
-            pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])
-            matched = match_regions(matched, regions, region_colours, options.phase_match,
-                                    pixels.min(0), pixels.max(0))
-        # the corrections differ from phase to phase: applied voxel by voxel they would redraw
-        # every boundary as a voxel staircase; smoothed, they keep the fill's antialiasing
-        voxels = voxels + smooth_volume(matched - voxels, CORRECTION_SIGMA, wrap)
-    return voxels.astype(np.float32), source, structure_seconds
+def finish(voxels, found: Plan, built: Built, strength: float) -> np.ndarray:
+    """The fill's voxels with each phase's colours (and each particle's mean) moved `strength`
+    of the way to the exemplar's."""
+    if strength <= 0:
+        return voxels
+    pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])
+    matched = match_phases(voxels, built.labels, built.coverage, found.images,
+                           found.ex_of_axis, found.ex_labels)
+    if built.regions is not None:
+        matched = match_regions(matched, built.regions, built.region_colours,
+                                built.coverage[..., 1], pixels.min(0), pixels.max(0))
+    return (voxels + strength * (matched - voxels)).astype(np.float32)

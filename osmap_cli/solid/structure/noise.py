@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from osmap_cli.solid.pipeline import upsample_linear
+from osmap_cli.solid.upsample import upsample_linear
 
 
 def spectral_field(shape, amplitude, seed: int) -> np.ndarray:
@@ -17,7 +17,7 @@ def spectral_field(shape, amplitude, seed: int) -> np.ndarray:
     freqs = np.meshgrid(*(np.fft.fftfreq(n) for n in shape[:-1]), np.fft.rfftfreq(shape[-1]),
                         indexing="ij")
     spectrum = np.fft.rfftn(white) * amplitude(*freqs)
-    field = np.fft.irfftn(spectrum, s=shape)
+    field = np.fft.irfftn(spectrum, s=shape, axes=tuple(range(len(shape))))
     std = field.std()
     return field / std if std > 0 else field
 
