@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 from dataclasses import dataclass
 
 from osmap_cli.batch import Job
@@ -32,6 +33,7 @@ class SolidJob(Job):
     replace: bool = True  # False: an existing output makes the job "skipped"
     refused: str | None = None
     progress: bool = False
+    verbose: bool = False  # the summary line starts with what the method found and did
 
     @property
     def outputs(self) -> list[str]:
@@ -104,6 +106,8 @@ class SolidJob(Job):
         options = self.options
         names = list(self.files) if len(self.files) == 3 else [self.files[0]]
         metadata = volume_metadata(options, self.preset, names)
+        if result.provenance is not None:
+            metadata["structure"] = json.dumps(result.provenance, sort_keys=True)
         depth = 16 if max(im.bit_depth for im in images) >= 16 else 8
         write, folder = volumeio.volume_writer(
             self.output, result.voxels, self.kind, depth=depth,
@@ -125,4 +129,6 @@ class SolidJob(Job):
         extras = [p for p in (self.uv_out, self.preview) if p is not None]
         if extras:
             line += "; also " + ", ".join(extras)
+        if self.verbose and result.report:
+            line = "\n".join([*result.report, line])
         return line, []

@@ -31,6 +31,7 @@ MIN_SOLIDITY = 0.75
 MIN_DIAMETER = 4.0  # px: finer structure is texture, left to the fill
 MIN_EDGE = 1.4  # profile outlines lie on edges: their mean gradient over the image's
 MAX_SPLIT = 0.12  # split lines may complete a gap network, not make most of it
+PERIODIC = 0.2  # autocorrelation at the first peak across the stripes: a spacing worth naming
 FIELD_SEPARATION = 1.3  # between-phase over within-phase colour spread for a phase field
 WORKING_SIDE = 128  # smaller images are analysed enlarged to about this (the thresholds above
 MAX_FACTOR = 4  # are in pixels of this resolution)
@@ -137,7 +138,7 @@ class Analysis:
                          f"elongation {p.elongation:.2f}")
         lines.append(f"orientation: {self.angle:.0f} deg, coherence {self.coherence:.2f} "
                      f"(local {self.local_coherence:.2f})")
-        if self.spacing > 0:
+        if self.spacing > 0 and (self.kind == "layers" or self.spacing_strength >= PERIODIC):
             lines.append(f"layer spacing: {self.spacing:.1f} px "
                          f"(autocorrelation {self.spacing_strength:.2f})")
         return lines
@@ -146,7 +147,7 @@ class Analysis:
         """A JSON-able record (provenance)."""
         out = {"kind": self.kind, "phases": [round(float(f), 4) for f in self.fractions],
                "orientation_deg": round(self.angle, 2), "coherence": round(self.coherence, 3)}
-        if self.spacing > 0:
+        if self.spacing > 0 and (self.kind == "layers" or self.spacing_strength >= PERIODIC):
             out["layer_spacing_px"] = round(self.spacing, 2)
         if self.profiles is not None:
             scaled = self.profiles.scaled(1.0 / self.reader.factor)

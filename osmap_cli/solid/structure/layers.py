@@ -25,9 +25,9 @@ RING_SIDES = 0.35  # ... and the other families' stripes are at least this coher
 MIN_RUN = 1.0
 WOBBLE_LENGTH = 4.0  # the displacement's correlation length, in layer spacings
 MAX_CHAIN = 1 << 20
-STREAK_LENGTH = 0.5  # fibres: correlation across the grain, in layer spacings
+STREAK_LENGTH = 0.7  # fibres: correlation across the grain, in layer spacings
 STREAK_STRETCH = 12.0  # ... and this many times longer along it
-STREAK_AMPLITUDE = 0.45  # ... displacement, in layer spacings
+STREAK_AMPLITUDE = 0.35  # ... displacement, in layer spacings
 
 
 @dataclass(frozen=True)
@@ -44,7 +44,9 @@ class LayerModel:
     transitions: np.ndarray
     wobble: float
     spacing: float
-    grain: np.ndarray | None = None  # fibres: direction (z, y, x) of streaks within the layers
+    extent: tuple = (0.0, 0.0)  # rings: the end exemplar's size (rows, cols), px
+    across: np.ndarray | None = None  # fibres: the direction (z, y, x) within the layers
+    #                                   across their grain (streaks vary fast along it only)
     streaks: float = 0.0  # their displacement amplitude (voxels)
 
     @property
@@ -157,18 +159,24 @@ def layer_coordinate(shape, model: LayerModel, seed: int, wrap: bool) -> np.ndar
     grids = np.meshgrid(*(np.arange(n, dtype=np.float32) + 0.5 - n / 2 for n in shape),
                         indexing="ij")
     if model.rings:
+        # the axis as far from the end face's centre as in the end exemplar, in proportion to
+        # the face's size when it is smaller (a smaller face shows the exemplar's framing)
         dims = [d for d in range(3) if d != 2 - model.axis]
-        u = np.hypot(grids[dims[0]] - model.centre[0], grids[dims[1]] - model.centre[1])
+        k = [min(1.0, shape[d] / e) if e else 1.0 for d, e in zip(dims, model.extent)]
+        u = np.hypot(grids[dims[0]] - k[0] * model.centre[0],
+                     grids[dims[1]] - k[1] * model.centre[1])
     else:
         u = sum(float(model.normal[d]) * grids[d] for d in range(3))
     if model.wobble > 0:
         length = WOBBLE_LENGTH * model.spacing
         u = u + model.wobble * smooth_noise(shape, length, seed + 11, wrap)
     if model.streaks > 0:
-        # fibres: a displacement that changes fast across the grain and slowly along it, so a
-        # cut parallel to the layers shows streaks along the grain instead of one flat band
-        u = u + model.streaks * smooth_noise(shape, STREAK_LENGTH * model.spacing, seed + 13,
-                                             wrap, model.grain, STREAK_STRETCH)
+        # fibres: a displacement that changes fast across the grain within the layers and
+        # slowly along the grain and the normal, so a cut parallel to the layers shows streaks
+        # along the grain instead of one flat band, and cuts across the layers keep them whole
+        u = u + model.streaks * smooth_noise(shape, STREAK_STRETCH * STREAK_LENGTH
+                                             * model.spacing, seed + 13, wrap, model.across,
+                                             1.0 / STREAK_STRETCH)
     return u.astype(np.float32)
 
 
@@ -256,12 +264,15 @@ def fit_layers(images, labels, analyses, ex_of_axis) -> LayerModel:
         e = int(ex_of_axis[(ring[0] + 1) % 3])
         angle_ref, lum_ref = analyses[e].angle, lums[e]
     wobble = wobble_amplitude(lum_ref, angle_ref, spacing)
-    grain, streaks = None, 0.0
+    across, streaks = None, 0.0
     if single:
         # one exemplar shows the layers on every face: a face parallel to them gets the
         # exemplar's streaks along its columns (the grain along the side faces' stripes)
         grain = stripe_direction(analyses[0].angle, 1)
         grain = grain - (grain @ normal) * normal
         grain /= max(np.linalg.norm(grain), 1e-9)
+        across = np.cross(normal, grain)
         streaks = STREAK_AMPLITUDE * spacing
-    return LayerModel(normal, axis, rel, lengths, trans, wobble, spacing, grain, streaks)
+    extent = labels[int(ex_of_axis[ring[0]])].shape if ring is not None else (0.0, 0.0)
+    return LayerModel(normal, axis, rel, lengths, trans, wobble, spacing,
+                      tuple(float(v) for v in extent), across, streaks)

@@ -25,10 +25,10 @@ def spectral_field(shape, amplitude, seed: int) -> np.ndarray:
 def smooth_noise(shape, length: float, seed: int, wrap: bool = False, along=None,
                  stretch: float = 1.0) -> np.ndarray:
     """float32 (Z, Y, X): unit-variance Gaussian noise with a Gaussian correlation of about
-    `length` voxels (`stretch` times longer in the direction `along` (z, y, x)), made on a grid
-    `length` / 4 coarser and interpolated (periodic with wrap: the coarse grid divides the
-    volume)."""
-    step = max(1.0, length / 4.0)
+    `length` voxels (`stretch` times that in the direction `along` (z, y, x): below 1, shorter),
+    made on a grid min(length, stretch x length) / 4 coarser and interpolated (periodic with
+    wrap: the coarse grid divides the volume)."""
+    step = max(1.0, min(length, length * stretch) / 4.0)
     if wrap:
         coarse = tuple(max(4, int(round(n / step))) for n in shape)
     else:
