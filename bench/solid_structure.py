@@ -48,35 +48,17 @@ def granules(ex_path: Path, vol_path: Path) -> dict:
 
 
 def synthesize(exemplars, side: int, method: str, seed: int = 1, changes=None):
-    """(voxels, seconds, structure seconds or None, plan report lines)."""
+    """(voxels, seconds, structure step seconds or None, the method's report lines)."""
     from osmap_cli.solid import SolidOptions, synthesize_solid
-    from osmap_cli.solid.structure.method import StructureOptions, plan
-    from osmap_cli.solid.structure.method import synthesize as run_structure
 
-    changes = dict(changes or {})
+    options = SolidOptions(width=side, height=side, depth=side, seed=seed,
+                           method=method).replace(**dict(changes or {}))
     started = time.perf_counter()
-    ex_of_axis = np.zeros(3, np.int64) if len(exemplars) == 1 else np.arange(3)
-    if method.startswith("structure"):
-        opts = StructureOptions().replace(**changes)
-        found = plan(exemplars, ex_of_axis, opts, seed)
-        if found.kind != "none":
-            layout = None
-            if opts.layout == "osmap":
-                from osmap_cli.solid.pipeline import organise
-
-                def layout(shape, ex_shapes, lo, hi):
-                    return organise(shape, ex_shapes, ex_of_axis, lo, hi,
-                                    SolidOptions(seed=seed), seed)
-            voxels, _, structure_s = run_structure(found, (side,) * 3, opts, seed, False,
-                                                   layout=layout)
-            return voxels, time.perf_counter() - started, structure_s, found.report()
-        method = "osmap"
-        report = found.report()
-    else:
-        report = []
-    options = SolidOptions(width=side, height=side, depth=side, seed=seed, method=method)
     result = synthesize_solid(exemplars, options)
-    return result.voxels, time.perf_counter() - started, None, report
+    seconds = time.perf_counter() - started
+    structure = next((float(line.split()[2]) for line in result.report
+                      if line.startswith("structure step")), None)
+    return result.voxels, seconds, structure, list(result.report)
 
 
 def measure(ex_path: Path, vol_path: Path, exemplar, voxels) -> dict:
@@ -218,16 +200,16 @@ def main(argv=None) -> int:
     ap.add_argument("--sheet", type=Path, default=None)
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                    help="a structure option changed (e.g. layout=random)")
+                    help="a solid tunable changed for method structure (e.g. "
+                    "som_steps_per_node=0: no OS-Map training)")
     args = ap.parse_args(argv)
+    from osmap_cli.options import option_spec
+    from osmap_cli.solid import SolidOptions
+
     changes = {}
     for item in args.set:
         key, value = item.split("=", 1)
-        from osmap_cli.options import option_spec
-        from osmap_cli.solid.structure.method import StructureOptions
-
-        kind = option_spec(StructureOptions, key).kind
-        changes[key] = kind(value)
+        changes[key] = option_spec(SolidOptions, key).kind(value)
     print(HEADER, flush=True)
     rows = run(args.names.split(","), [int(s) for s in args.sides.split(",")],
                args.methods.split(","), args.sheet, changes=changes,

@@ -67,7 +67,7 @@ def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
     structure_seconds = time.perf_counter() - started
     voxels, source = fill(task, found.ex_labels, found.ex_identity, built.labels,
                           built.identity, options.fill, progress)
-    voxels = finish(voxels, found, built, options.fill.phase_match)
+    voxels = finish(voxels, found, built, options.fill.phase_match, task.tileable)
     seconds = time.perf_counter() - started
     report = (*found.report(), f"structure step {structure_seconds:.1f} s of "
               f"{seconds:.1f} s (analysis and model {found.seconds:.1f} s)")

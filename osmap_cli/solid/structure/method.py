@@ -26,6 +26,7 @@ from osmap_cli.solid.structure.profiles import profile_ids
 from osmap_cli.solid.structure.segment import Segmenter, smooth_volume
 
 COVERAGE_SIGMA = 0.5  # voxels: layers' and fields' phase boundaries antialiased this much
+MATCH_SIGMA = 0.7  # voxels: the colour matching maps the fill's content blurred this much
 
 
 @dataclass
@@ -218,14 +219,17 @@ def build_structure(found: Plan, shape, seed: int, wrap: bool) -> Built:
     return Built(labels, found.colours[labels].astype(np.float32), coverage)
 
 
-def finish(voxels, found: Plan, built: Built, strength: float) -> np.ndarray:
+def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np.ndarray:
     """The fill's voxels with each phase's colours (and each particle's mean) moved `strength`
     of the way to the exemplar's."""
     if strength <= 0:
         return voxels
     pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])
-    matched = match_phases(voxels, built.labels, built.coverage, found.images,
-                           found.ex_of_axis, found.ex_labels)
+    # the mapping stretches contrast: applied to the fill's low-pass only, it does not amplify
+    # the fill's faint 1-voxel hatching (which stays as it is in the detail)
+    low = smooth_volume(voxels, MATCH_SIGMA, wrap)
+    matched = match_phases(low, built.labels, built.coverage, found.images,
+                           found.ex_of_axis, found.ex_labels) + (voxels - low)
     if built.regions is not None:
         matched = match_regions(matched, built.regions, built.region_colours,
                                 built.coverage[..., 1], pixels.min(0), pixels.max(0))
