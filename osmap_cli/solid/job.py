@@ -60,7 +60,7 @@ class SolidJob(Job):
     def check(self, images) -> None:
         import numpy as np
 
-        from osmap_cli.memory import check_memory, volume_bytes
+        from osmap_cli.memory import check_memory, structure_bytes, volume_bytes
         from osmap_cli.solid import volumeio
 
         channels = {im.pixels.shape[2] for im in images}
@@ -87,7 +87,10 @@ class SolidJob(Job):
         made = self.options.synthesis_shape()
         if made != self.options.shape:
             what += f" (turned: {made[2]}x{made[1]}x{made[0]} voxels of material)"
-        check_memory(volume_bytes(made, count, self.options.feature_dims), what)
+        need = volume_bytes(made, count, self.options.feature_dims)
+        if self.options.method == "structure":
+            need += structure_bytes(made)
+        check_memory(need, what)
 
     def compute(self, images):
         from osmap_cli.progress import ProgressBar

@@ -23,10 +23,10 @@ from osmap_cli.solid.structure import layers as ly
 from osmap_cli.solid.structure import particles as pt
 from osmap_cli.solid.structure.fill import match_phases, match_regions
 from osmap_cli.solid.structure.profiles import profile_ids
-from osmap_cli.solid.structure.segment import Segmenter, smooth_volume
+from osmap_cli.solid.structure.segment import Segmenter, gaussian_blur, smooth_volume
 
 COVERAGE_SIGMA = 0.5  # voxels: layers' and fields' phase boundaries antialiased this much
-MATCH_SIGMA = 0.7  # voxels: the colour matching maps the fill's content blurred this much
+MATCH_SIGMA = 0.5  # voxels: the colour matching maps the fill's content blurred this much
 
 
 @dataclass
@@ -225,11 +225,12 @@ def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np
     if strength <= 0:
         return voxels
     pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])
-    # the mapping stretches contrast: applied to the fill's low-pass only, it does not amplify
-    # the fill's faint 1-voxel hatching (which stays as it is in the detail)
+    # the mapping stretches contrast: applied to the fill's low-pass (onto the exemplar's
+    # low-pass), it does not amplify the fill's faint 1-voxel hatching, which stays as it is
     low = smooth_volume(voxels, MATCH_SIGMA, wrap)
-    matched = match_phases(low, built.labels, built.coverage, found.images,
-                           found.ex_of_axis, found.ex_labels) + (voxels - low)
+    blurred = [gaussian_blur(im, MATCH_SIGMA, wrap).astype(np.float32) for im in found.images]
+    matched = match_phases(low, built.labels, built.coverage, blurred, found.ex_of_axis,
+                           found.ex_labels) + (voxels - low)
     if built.regions is not None:
         matched = match_regions(matched, built.regions, built.region_colours,
                                 built.coverage[..., 1], pixels.min(0), pixels.max(0))
