@@ -1,6 +1,6 @@
 # osmap: set-up, demo, tests, benchmarks (GNU make).
 #
-#   make demo    create .venv, install osmap, synthesize two sample textures into out/
+#   make demo    create .venv, install osmap, synthesize two sample textures into out/ (timed)
 #   make test    create .venv, install osmap, run the test suite
 #
 # Only Python >= 3.10 with pip (and a C compiler if a dependency has no wheel) is needed:
@@ -14,12 +14,13 @@ OSMAP = $(VENV)/bin/osmap
 STAMP = $(VENV)/.osmap-installed
 
 .DEFAULT_GOAL := help
-.PHONY: help venv demo test bench lint clean distclean
+.PHONY: help venv demo test bench mutants lint clean distclean
 
 help:
 	@echo "make demo       set up $(VENV) and synthesize two samples into out/"
 	@echo "make test       set up $(VENV) and run the tests"
 	@echo "make bench      set up $(VENV) and run the benchmarks (writes BENCHMARKS.md)"
+	@echo "make mutants    set up $(VENV) and run mutation testing (slow; outside CI)"
 	@echo "make lint       ruff check ."
 	@echo "make venv       only create $(VENV) and install osmap (editable, dev tools, dask cluster)"
 	@echo "make clean      remove out/ and caches; make distclean also removes $(VENV)"
@@ -32,10 +33,17 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e ".[dev,cluster]"
 	@touch $@
 
+# `pip install .` ships kernels compiled for any CPU of this kind (buildhook/osmap_build.py); the
+# editable install of $(VENV) does not, so demo builds them for this tree (about 40 s on two
+# cores; again only when a kernel changed), then times each synthesis (the first one is the
+# first run after the install).
+TIMED = $(PY) -c "import subprocess, sys, time; t = time.perf_counter(); code = subprocess.call(sys.argv[1:]); print(f'demo: {sys.argv[3]} -> {sys.argv[5]} in {time.perf_counter() - t:.1f} s', file=sys.stderr); sys.exit(code)"
+
 demo: venv
 	@mkdir -p out
-	$(OSMAP) synth samples/cells.png -o out/cells_synth.png --size 256
-	$(OSMAP) synth samples/brick.png -o out/brick_synth.png --size 256 --preset structured
+	@$(PY) -m osmap_cli.kernelwarm portable --if-stale kernels/portable-cache
+	@$(TIMED) $(OSMAP) synth samples/cells.png -o out/cells_synth.png --size 256
+	@$(TIMED) $(OSMAP) synth samples/brick.png -o out/brick_synth.png --size 256 --preset structured
 	@echo "demo outputs: out/cells_synth.png (from samples/cells.png), out/brick_synth.png (from samples/brick.png)"
 
 test: venv
@@ -46,11 +54,21 @@ bench: venv
 	$(PY) -m pip install --quiet minisom
 	$(PY) bench/run.py
 
+# Mutation testing (docs/testing.md): mutmut is installed here, not as a test dependency. It
+# mutates the modules where bugs are silent and runs the test files aimed at them (the
+# [tool.mutmut] table of pyproject.toml); MUTANTS picks which mutants (of engine.py, the schedule).
+MUTANTS ?= osmap_cli.output.* osmap_cli.provenance.* osmap_cli.options.* osmap_cli.batch.* \
+	osmap_cli.engine.xǁScheduleǁ* osmap_cli.synth.organise.*
+mutants: venv
+	$(PY) -m pip install --quiet "mutmut==3.8.1"
+	nice -n 10 $(VENV)/bin/mutmut run $(foreach p,$(MUTANTS),'$(p)')
+	$(PY) tests/mutation_report.py $(foreach p,$(MUTANTS),'$(p)')
+
 lint: venv
 	$(PY) -m ruff check .
 
 clean:
-	rm -rf out build dist .pytest_cache .ruff_cache *.egg-info
+	rm -rf out build dist mutants .pytest_cache .ruff_cache *.egg-info kernels/portable-cache
 	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
 
 distclean: clean

@@ -122,8 +122,8 @@ def _warm_cluster(exemplars, work: Path) -> tuple[str, float, float]:
     """Per-task overhead on a running local cluster: real jobs and no-op (skipped) jobs."""
     from distributed import Client
 
-    from osmap_cli.batch import _run_caught
     from osmap_cli.cluster import ClusterSpec, run_cluster, start_local_cluster
+    from osmap_cli.records import run_caught
 
     started = time.perf_counter()
     cluster = start_local_cluster(2)  # as --scheduler local:2 starts it
@@ -153,7 +153,7 @@ def _warm_cluster(exemplars, work: Path) -> tuple[str, float, float]:
             noop_walls[fail_fast].append(wall)
         rows_noop = [(label, statistics.mean(noop_walls[ff]))
                      for label, ff in (("cluster", False), ("cluster, --fail-fast", True))]
-        serial_wall, _ = _timed(lambda report: [report(_run_caught(j)) for j in noop])
+        serial_wall, _ = _timed(lambda report: [report(run_caught(j)) for j in noop])
     finally:
         closing = time.perf_counter()
         cluster.close()

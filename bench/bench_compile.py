@@ -1,14 +1,24 @@
-"""Where a first run's time goes: the Numba compile of each kernel, and what a warm run loads.
+"""Where a first run's time goes: the Numba compile of each kernel, what a warm run loads, and
+the first run after `pip install .` that the portable kernel cache serves.
 
-Each measurement is a fresh process with NUMBA_CACHE_DIR pointed at an empty folder, running a
-default 256x256 `synthesize` from a shipped sample with one Numba thread (so that every compile
-happens in the calling thread, whose CPU time is then the compile's). Reported:
+Each compile measurement is a fresh process with NUMBA_CACHE_DIR pointed at an empty folder,
+running a default 256x256 `synthesize` from a shipped sample with one Numba thread (so that
+every compile happens in the calling thread, whose CPU time is then the compile's). Reported:
 
 - compile CPU seconds of each kernel the run calls (time.thread_time() around the first call
   of each dispatcher, callees included), and the signatures it compiled for;
-- the two groups that `osmap_cli.synth.warm` compiles side by side, each in a fresh process
-  (CPU seconds; refine after organise, into the same cache, as in a first run);
-- a warm process: seconds to import numba, and to load each kernel from the cache.
+- the two groups that `osmap_cli.synth.warm` compiles side by side (a tree without a portable
+  cache), each in a fresh process (CPU seconds; refine after organise, into the same cache, as
+  in a first run);
+- a warm process: seconds to import numba, and to load each kernel from the cache;
+- after install (skipped with --quick): this checkout installed with `pip install` into a new
+  virtual environment (timed), then, NUMBA_CACHE_DIR unset and no warmup, the first `osmap
+  synth` at 256x256 and the first `osmap solid` at 128^3 (each a fresh process, wall and CPU;
+  they run on the portable kernels), the background compile for this CPU that the first one
+  starts (until its marker appears), the same two commands again (this CPU's kernels), and
+  paired steady-state runs: this CPU's kernels from the background compile against kernels
+  compiled on first use (OSMAP_KERNELS=host, a separate cache: the ordinary way), and the
+  portable kernels (forced with NUMBA_CPU_NAME=generic) against this CPU's.
 
     python bench/bench_compile.py [--quick]
 """
@@ -21,7 +31,7 @@ import sys
 import tempfile
 
 import common
-from common import SAMPLES_DIR, fmt, md_table
+from common import SAMPLES_DIR, fmt, md_table, timed_run
 
 COMMAND = ".venv/bin/python bench/run.py --only compile"
 
@@ -89,6 +99,78 @@ def _group_cpu(group: str, env: dict) -> float:
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
+def _wall_cpu(argv, env, cwd) -> tuple[float, float]:
+    return timed_run(argv, env=env, cwd=cwd)
+
+
+def _after_install(log) -> list[str]:
+    """The section's "after install" paragraph and tables (see the module docstring)."""
+    import os
+    import shutil
+    import statistics
+    import time
+    from pathlib import Path
+
+    root = Path(tempfile.mkdtemp(prefix="osmap-install-", dir=common.tmp_root()))
+    try:
+        venv = root / "venv"
+        subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
+        pip = [str(venv / "bin" / "python"), "-m", "pip", "install", "--quiet"]
+        subprocess.run([*pip, "pip>=21.3"], check=True, capture_output=True)
+        log("[compile] pip install . into a new environment")
+        started = time.perf_counter()
+        subprocess.run([*pip, str(common.REPO_ROOT)], check=True, capture_output=True)
+        install = time.perf_counter() - started
+        osmap = str(venv / "bin" / "osmap")
+        env = {k: v for k, v in os.environ.items()
+               if not k.startswith(("NUMBA_", "OSMAP_")) and k != "PYTHONDONTWRITEBYTECODE"}
+        env["HOME"] = str(root)  # no user-wide cache of an earlier run
+        work = root / "work"
+        work.mkdir()
+        synth = [osmap, "synth", str(SAMPLES_DIR / "cells.png"), "-o", "s.png", "--size", "256",
+                 "--quiet"]
+        solid = [osmap, "solid", str(SAMPLES_DIR / "cells.png"), "-o", "v.npy", "--size", "128",
+                 "--quiet"]
+        log("[compile] first runs")
+        first = {"synth": _wall_cpu(synth, env, work), "solid": _wall_cpu(solid, env, work)}
+        started = time.perf_counter()
+        marker = None
+        while marker is None and time.perf_counter() - started < 1800:
+            marker = next(iter(venv.rglob("osmap-host-*.ready")), None)
+            time.sleep(1.0)
+        background = time.perf_counter() - started
+        log(f"[compile] background compile done after {background:.0f} s more")
+        again = {"synth": _wall_cpu(synth, env, work), "solid": _wall_cpu(solid, env, work)}
+        # steady state, paired: host (background) / host (first use), portable / host
+        ordinary = dict(env, OSMAP_KERNELS="host", NUMBA_CACHE_DIR=str(root / "first-use"))
+        _wall_cpu(synth, ordinary, work)  # compiles the ordinary way
+        portable = dict(env, NUMBA_CPU_NAME="generic", NUMBA_CPU_FEATURES="")  # forced
+        ratios = {"host": [], "portable": []}
+        for _ in range(5):
+            ours = _wall_cpu(synth, env, work)
+            ratios["host"].append(ours[1] / _wall_cpu(synth, ordinary, work)[1])
+            ratios["portable"].append(_wall_cpu(synth, portable, work)[1] / ours[1])
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+    rows = [["`osmap synth cells.png --size 256`", fmt(first["synth"][0], 1),
+             fmt(first["synth"][1], 1), fmt(again["synth"][0], 1), fmt(again["synth"][1], 1)],
+            ["`osmap solid cells.png --size 128`", fmt(first["solid"][0], 1),
+             fmt(first["solid"][1], 1), fmt(again["solid"][0], 1), fmt(again["solid"][1], 1)]]
+    return [
+        f"After install: `pip install .` of this checkout into a new virtual environment took "
+        f"{install:.0f} s (the build compiles the portable kernels). Then, with NUMBA_CACHE_DIR "
+        "unset and no `osmap warmup`, each command's first run (portable kernels) and a run "
+        f"after the background compile for this CPU had finished ({background:.0f} s after the "
+        "first run), each a fresh process:", "",
+        md_table(["command", "first run wall s", "first run CPU s", "later run wall s",
+                  "later run CPU s"], rows),
+        "Steady state, CPU-second ratios of paired runs (medians of 5 pairs, `osmap synth` "
+        "256x256): this CPU's kernels from the background compile / kernels compiled on first "
+        f"use the ordinary way {fmt(statistics.median(ratios['host']), 3)}; the portable "
+        f"kernels / this CPU's {fmt(statistics.median(ratios['portable']), 3)}.", "",
+    ]
+
+
 def run(quick: bool = False, log=print) -> str:
     import os
 
@@ -121,8 +203,9 @@ def run(quick: bool = False, log=print) -> str:
         "it from the cache in a later, warm process (the first load also sets up Numba's CPU "
         "target, about half a second, whichever kernel comes first).", "",
         md_table(["kernel", "compile CPU s", "signatures", "warm load s"], rows),
-        "A first `osmap synth` compiles the kernels in two groups at once, one in a child "
-        "process (`osmap_cli.synth.warm`); each group in a fresh process (CPU s, interpreter "
+        "Without portable kernels (a development tree), a first `osmap synth` compiles the "
+        "kernels in two groups at once, one in a child process (`osmap_cli.synth.warm`); each "
+        "group in a fresh process (CPU s, interpreter "
         "and imports included; refine with the kernels it shares with organise already cached, "
         "as in a first run, where organise compiles them first): "
         + ", ".join(f"{g} {fmt(s, 1)}" for g, s in groups.items())
@@ -130,6 +213,7 @@ def run(quick: bool = False, log=print) -> str:
         f"Warm process: `import numba` {fmt(warm['numba'], 2)} s; the first 256x256 "
         f"`synthesize` (kernels loaded from the cache) {fmt(warm['first'], 2)} s, a second one "
         f"in the same process {fmt(warm['second'], 2)} s (one thread).", "",
+        *([] if quick else _after_install(log)),
     ])
 
 

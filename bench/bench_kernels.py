@@ -333,7 +333,7 @@ def refine_line(quick: bool):
         def once():
             refine(pos, feat, jac_field, lo, hi, 1, opts, wrap=False, seed=1, salt=3)
         med, _, _ = _cpu_median(once, 3)
-    except Exception as exc:  # noqa: BLE001 - the lead's API may change under us
+    except Exception as exc:  # noqa: BLE001 - the engine's API may change under us
         print(f"[roofline] refine not measured: {exc!r}", file=sys.stderr)
         return None
     nf = feat.shape[2]

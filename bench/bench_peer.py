@@ -2,14 +2,17 @@
 
 The peer is a command kept outside the repository (../shared/peers/resynth/resynth_cli, see its
 README there); the section is skipped with a note when it is absent. For every shipped sample
-and output size, `osmap synth` (warm Numba cache) and the peer run in turn, A B A B ..., each a
-fresh process timed from outside (start-up included); the ratio osmap / peer is taken pair by
-pair, so a drift of the shared machine's speed cancels. Reported: each case's median pair
-ratio, and their geometric mean per size. Two more rows at 256x256: the Numba floor
+and output size, `osmap synth` and the peer run in turn, A B A B ..., each a fresh process timed
+from outside (start-up included); the ratio osmap / peer is taken pair by pair, so a drift of
+the shared machine's speed cancels. Reported: each case's median pair ratio, and their
+geometric mean per size. osmap runs as installed and warmed up (`osmap warmup` first: this
+CPU's kernels), with Python's default bytecode caching (a PYTHONDONTWRITEBYTECODE in the
+environment is dropped for its runs). Two more rows at 256x256: the Numba floor
 (bench/numba_floor.py: Python, numpy and Numba imported, one cached kernel loaded and called,
 nothing else) against the peer on the same samples, the start-up cost no change inside osmap
 can remove; and a batch, one `osmap synth` call over all the samples (--out-dir) against the
-peer run once per sample in turn, as a folder pipeline would.
+peer run once per sample in turn, as a folder pipeline would. Last, where one 256x256 run's
+time goes, phase by phase (bench/run_phases.py), beside the peer's whole run.
 
     python bench/bench_peer.py [--quick] [--runs N]
 """
@@ -22,11 +25,13 @@ import os
 import shlex
 import shutil
 import statistics
+import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 import common
+import run_phases
 from common import SAMPLES_DIR, SHARED_DIR, fmt, md_table, timed_run
 
 PEER = SHARED_DIR / "peers" / "resynth" / "resynth_cli"
@@ -72,6 +77,8 @@ def run(quick: bool = False, runs: int | None = None, log=print) -> str:
     cases = QUICK_CASES if quick else CASES
     work = Path(tempfile.mkdtemp(prefix="osmap-peer-", dir=common.tmp_root()))
     env = dict(os.environ)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    subprocess.run([str(osmap), "warmup", "--quiet"], env=env, check=True)
     rows, by_size, floors = [], {}, []
     try:
         for size, names in cases:
@@ -99,6 +106,12 @@ def run(quick: bool = False, runs: int | None = None, log=print) -> str:
                             f"{shlex.quote(str(work / 'peer.png'))} 256 256" for n in names)
         batch_ratio = _paired(batch, ["sh", "-c", peers], runs, env)
         log(f"[peer] batch of {len(names)} at 256: osmap/peer wall {batch_ratio[2]:.2f}")
+        sample = SAMPLES_DIR / f"{names[0]}.png"
+        phases = run_phases.measure(
+            ["synth", str(sample), "-o", str(work / "phases.png"), "--size", "256", "--seed",
+             "1", "--quiet"], runs=max(runs, 3), env=env)
+        peer_one = [str(PEER), str(sample), str(work / "peer.png"), "256", "256"]
+        peer_walls = [timed_run(peer_one, env=env) for _ in range(max(runs, 3))]
     finally:
         shutil.rmtree(work, ignore_errors=True)
     summary = [[f"{size}x{size} ({len(v)} samples, geometric mean)",
@@ -114,7 +127,8 @@ def run(quick: bool = False, runs: int | None = None, log=print) -> str:
         f"average (1 min) at start / end: {load_start} / {common.load_average()} (the peer runs "
         "up to 8 threads, osmap one per core: on a busy machine the peer gets the larger share "
         "of the CPU, and the wall ratios grow)._", "",
-        "`osmap synth EXEMPLAR -o OUT --size N --seed 1 --quiet` (warm Numba cache) and the "
+        "`osmap synth EXEMPLAR -o OUT --size N --seed 1 --quiet` (this CPU's kernels cached, "
+        "bytecode cached) and the "
         "Resynthesizer engine (`resynth_cli EXEMPLAR OUT N N`, its defaults; outside the "
         "repository, used only to measure) on the shipped samples, each a fresh process timed "
         f"from outside, run in turn {runs} times after one untimed run each; ratios are "
@@ -127,6 +141,11 @@ def run(quick: bool = False, runs: int | None = None, log=print) -> str:
         md_table(["size", "osmap / peer wall", "osmap / peer CPU"], summary),
         md_table(["case", "osmap wall s", "peer wall s", "wall ratio", "CPU ratio",
                   "Numba floor / peer wall"], rows),
+        f"Where one `osmap synth {names[0]}.png --size 256` goes (medians of "
+        f"{max(runs, 3)} runs, wall and CPU seconds; bench/run_phases.py), beside the peer's "
+        f"whole run on the same sample: wall {fmt(statistics.median(w for w, _ in peer_walls))}"
+        f" s, CPU {fmt(statistics.median(c for _, c in peer_walls))} s.", "",
+        run_phases.table(phases),
     ])
 
 

@@ -213,8 +213,8 @@ def run(quick: bool = False, log=print) -> str:
         "where they end depends on the run (TE a lot when the radius starts too small to "
         "unfold the map, leaving twists), so the errors are compared by their medians and "
         "ranges over the runs, not by one run.",
-        "Target (issue 7: >= 20x MiniSom's steps/s, median cpu ratio, with equal or better "
-        "QE: osmap's median QE against MiniSom's median, or within the range of MiniSom's own "
+        "Target: >= 20x MiniSom's steps/s (median cpu ratio) with equal or better QE "
+        "(osmap's median QE against MiniSom's median, or within the range of MiniSom's own "
         "runs): "
         + "; ".join(f"{label}, {sname.split(' ')[0]}: speed **{'met' if ok else 'not met'}**"
                     f", QE {ratios[(label, sname)][3]}"

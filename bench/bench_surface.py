@@ -10,7 +10,7 @@ kernels), wall-clock time:
 - wall time to a finished 32x32 torus with the CLI defaults (sampling 20k points, training, OBJ
   text), without the metrics.
 
-Then the fold rate (issue 17, `fold_rates`): for each variant of tests/surface_samplers.py (roll of
+Then the fold rate (`fold_rates`): for each variant of tests/surface_samplers.py (roll of
 1 and 1.5 turns, torus, and noisy and non-uniform rolls and tori), SEEDS point clouds of
 FOLD_POINTS points drawn by those independent samplers are written to .xyz files and fitted the
 way users do, `osmap surface cloud.xyz -o grid.obj --seed S` plus the flags docs/surface.md gives
@@ -158,21 +158,6 @@ def fold_rates(variants=None, seeds=SEEDS, n_points: int = FOLD_POINTS, extra=()
     return rows
 
 
-# The same sweep on the code before issue 17 (commit bfc9f46: random start, wide schedule, no
-# fold check, frame centre at the centroid), kept here so that a rerun of the section still shows
-# the comparison. The new code reproduces it with
-# `--extra "--init random --fold-retries 0 --center centroid"` (byte-identical OBJs checked on
-# torus-nonuniform seed 0 and roll seed 2).
-BEFORE_ISSUE_17 = [
-    "| roll | 0-49 | 3/50 | 2, 18, 22 | 0.0161 | 0.0323 | 0.00 | 0.177 | - | 2.4 s |",
-    "| roll-1.5 | 0-49 | 50/50 | all | 0.0817 | 0.2581 | 0.01 | 0.540 | - | 3.0 s |",
-    "| torus | 0-49 | 0/50 | - | 0.0000 | 0.0000 | 3.62 | 0.042 | - | 5.2 s |",
-    "| roll-noisy | 0-49 | 1/50 | 2 | 0.0161 | 0.0323 | 0.00 | 0.173 | - | 1.7 s |",
-    "| roll-nonuniform | 0-49 | 0/50 | - | 0.0000 | 0.0000 | 0.00 | 0.065 | - | 2.2 s |",
-    "| torus-noisy | 0-49 | 0/50 | - | 0.0000 | 0.0000 | 3.66 | 0.052 | - | 7.8 s |",
-    "| torus-nonuniform | 0-49 | 50/50 | all | 0.0405 | 0.1914 | 4.20 | 1.186 | - | 5.4 s |",
-]
-
 FOLD_HEADER = ["| variant | seeds | failed | failing seeds | worst shortcut | worst flipped | "
                "worst angle | worst fit | seeds refitted | s/seed |",
                "|---|---|---|---|---|---|---|---|---|---|"]
@@ -219,16 +204,8 @@ def run(quick: bool = False) -> str:
         "a fold and refitted (report field fits_run > 1). s/seed includes sampling, the .xyz "
         "file, the fit and the generic --report-json metrics.",
         "",
-        "Now (defaults):",
-        "",
         *FOLD_HEADER,
         *folds,
-        "",
-        "Before issue 17 (commit bfc9f46, the same sweep; see BEFORE_ISSUE_17 in "
-        "bench/bench_surface.py):",
-        "",
-        *FOLD_HEADER,
-        *BEFORE_ISSUE_17,
         "",
     ])
 

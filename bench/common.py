@@ -174,8 +174,8 @@ def machine_lines() -> list[str]:
 
 
 def stamp() -> str:
-    """One line saying when and at which commit a section was produced."""
-    return f"{utc_now()}, commit {git_commit()}"
+    """One line saying when, at which commit and on which machine a section was produced."""
+    return f"{utc_now()}, commit {git_commit()}, {cpu_model()} ({core_count()} cores)"
 
 
 # ----------------------------------------------------------------------------- the CLI

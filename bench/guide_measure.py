@@ -1,6 +1,6 @@
 """Guided synthesis measured on development exemplars: the figures of docs/guide.md.
 
-Each exemplar is two development exemplars side by side (A | B, 128 px each), its guide 0 | 1;
+Each exemplar is two development exemplars side by side (A | B, the 128 px ones), its guide 0 | 1;
 the target guide is 0 on the output's left half and 1 on its right half (192x192). Per pair
 and seed (0, 1, 2) it reports, with texmetrics.py (coh_mean, in its own venv):
 
@@ -13,20 +13,27 @@ and seed (0, 1, 2) it reports, with texmetrics.py (coh_mean, in its own venv):
 With --sheet PATH, a contact sheet of the first seed: per pair the exemplar (A | B), the
 guided output and the unguided one (docs/guide_pairs.jpg).
 
-    python bench/guide_measure.py [--pairs a:b,c:d] [--seeds 0,1,2] [--keep DIR] [--sheet PATH]
+--pairs all measures every pair of the 11 development exemplars (55); the summary then names
+the worst pairs, and --sheet shows the WORST of them (by the lower half's share, then by the
+half ratio) instead of every pair. The material-alone syntheses are made once per material.
+
+    python bench/guide_measure.py [--pairs a:b,c:d|all] [--seeds 0,1,2] [--keep DIR]
+        [--sheet PATH] [--worst N]
 """
 
 from __future__ import annotations
 
 import os
 import sys
+from concurrent.futures import ThreadPoolExecutor
+from itertools import combinations
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from common import FULL_EXEMPLARS, measure_parser, measurement_folder  # noqa: E402
+from common import SMALL_EXEMPLARS, measure_parser, measurement_folder  # noqa: E402
 from common import texmetrics_coh as coh  # noqa: E402
 
 from osmap_cli.imageio import read_image, write_image  # noqa: E402
@@ -37,10 +44,21 @@ PAIRS = "gravel_green_stones:wood_planks_horizontal,marble_swirl_green:tomatoes,
 SIDE, MARGIN, GAP = 192, 4, 6
 
 
+def alone(name: str, pixels: np.ndarray, seed: int, folder: Path) -> Path:
+    """The material synthesized alone at a half's size (SIDE // 2 - MARGIN wide), once."""
+    path = folder / f"alone_{name}_{pixels.shape[0]}_{seed}.png"
+    if not path.exists():
+        half_opts = SynthOptions(width=SIDE // 2, height=SIDE, seed=seed)
+        write_image(str(path), synthesize(pixels, half_opts).pixels[:, :SIDE // 2 - MARGIN], 8)
+    return path
+
+
 def measure_pair(a: str, b: str, seed: int, folder: Path) -> dict:
     """One pair at one seed: shares, half ratios and the whole-output ratio."""
-    pa, pb = FULL_EXEMPLARS / f"{a}.png", FULL_EXEMPLARS / f"{b}.png"
+    pa, pb = SMALL_EXEMPLARS / f"{a}.png", SMALL_EXEMPLARS / f"{b}.png"
     ea, eb = read_image(pa).pixels[..., :3], read_image(pb).pixels[..., :3]
+    rows = min(ea.shape[0], eb.shape[0])  # the text exemplar is a few rows short of 128
+    ea, eb = ea[:rows], eb[:rows]
     exemplar = np.concatenate([ea, eb], axis=1)
     guide = np.zeros(exemplar.shape[:2], np.float32)
     guide[:, ea.shape[1]:] = 1.0
@@ -53,41 +71,54 @@ def measure_pair(a: str, b: str, seed: int, folder: Path) -> dict:
     from_b = guided.positions[..., 1] >= ea.shape[1] - 0.5
     files = {"exemplar": exemplar, "guided": guided.pixels, "unguided": unguided,
              "left": guided.pixels[:, :half], "right": guided.pixels[:, SIDE // 2 + MARGIN:]}
-    half_opts = SynthOptions(width=SIDE // 2, height=SIDE, seed=seed)
-    files["alone_a"] = synthesize(ea, half_opts).pixels[:, :half]
-    files["alone_b"] = synthesize(eb, half_opts).pixels[:, :half]
-    paths = {}
+    paths = {"alone_a": alone(a, ea, seed, folder), "alone_b": alone(b, eb, seed, folder)}
     for name, pixels in files.items():
         paths[name] = folder / f"{a}__{b}_{seed}_{name}.png"
         write_image(str(paths[name]), pixels, 8)
-    halves = [(coh(pa, paths["left"]), coh(pa, paths["alone_a"])),
-              (coh(pb, paths["right"]), coh(pb, paths["alone_b"]))]
+    with ThreadPoolExecutor(2) as pool:  # the meter runs in its own processes
+        scores = dict(zip(("left", "alone_a", "right", "alone_b", "guided", "unguided"),
+                          pool.map(lambda job: coh(*job), [
+                              (pa, paths["left"]), (pa, paths["alone_a"]),
+                              (pb, paths["right"]), (pb, paths["alone_b"]),
+                              (paths["exemplar"], paths["guided"]),
+                              (paths["exemplar"], paths["unguided"])])))
+    halves = [(scores["left"], scores["alone_a"]), (scores["right"], scores["alone_b"])]
     return {
         "images": (exemplar, guided.pixels, unguided),
         "share": (1 - from_b[:, :SIDE // 2].mean(), from_b[:, SIDE // 2:].mean()),
         "halves": halves,
         "half": tuple(g / alone for g, alone in halves),
-        "whole": (coh(paths["exemplar"], paths["guided"]),
-                  coh(paths["exemplar"], paths["unguided"])),
+        "whole": (scores["guided"], scores["unguided"]),
     }
+
+
+def all_pairs() -> str:
+    """Every pair of the development exemplars, as --pairs takes them."""
+    names = sorted(p.stem for p in SMALL_EXEMPLARS.glob("*.png"))
+    return ",".join(f"{a}:{b}" for a, b in combinations(names, 2))
 
 
 def main() -> None:
     parser = measure_parser(__doc__, seeds="0,1,2")
-    parser.add_argument("--pairs", default=PAIRS)
+    parser.add_argument("--pairs", default=PAIRS, help="a:b,c:d, or all (the 55 pairs)")
+    parser.add_argument("--worst", type=int, default=6,
+                        help="with --pairs all: the sheet shows this many worst pairs")
     args = parser.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
+    every = args.pairs == "all"
+    pairs = all_pairs() if every else args.pairs
     with measurement_folder(args.keep) as folder:
         print("| A : B | seed | share A / B | half A / alone, half B / alone "
               "| whole: guided, unguided (ratio) |")
         print("| --- | --- | --- | --- | --- |")
-        halves, wholes, per_material, rows = [], [], {}, []
-        for pair in args.pairs.split(","):
+        halves, wholes, per_material, rows, results = [], [], {}, [], []
+        for pair in pairs.split(","):
             a, b = pair.split(":")
             for seed in seeds:
                 m = measure_pair(a, b, seed, folder)
                 if seed == seeds[0]:
                     rows.append(m["images"])
+                results.append((a, b, seed, m))
                 halves += m["half"]
                 for name, raw in zip((a, b), m["halves"]):
                     per_material.setdefault(name, []).append(raw)
@@ -97,12 +128,23 @@ def main() -> None:
                       f"{m['whole'][1]:.2f} ({wholes[-1]:.2f}) |", flush=True)
         print(f"\nhalf ratios: geometric mean {np.exp(np.mean(np.log(halves))):.2f}, "
               f"max {max(halves):.2f}, over 1.3: {sum(h > 1.3 for h in halves)} of {len(halves)}; "
-              f"whole ratios: max {max(wholes):.2f}")
+              f"whole ratios: max {max(wholes):.2f}, over 1.3: "
+              f"{sum(w > 1.3 for w in wholes)} of {len(wholes)}")
+        shares = [min(m["share"]) for *_, m in results]
+        print(f"lowest share of a half: {min(shares):.1%}; halves under 90 %: "
+              f"{sum(s < 0.9 for *_, m in results for s in m['share'])} of {2 * len(results)}")
         # one seed's unguided synthesis can be luckier than another's: the seeds' means too
         print("each material, mean over the seeds of the guided half over the mean of the "
               "material alone: " + ", ".join(
                   f"{name} {np.mean([g for g, _ in raw]) / np.mean([u for _, u in raw]):.2f}"
                   for name, raw in per_material.items()))
+        if every:
+            worst = sorted(results, key=lambda r: (min(r[3]["share"]), -max(r[3]["half"])))
+            worst = worst[:args.worst]
+            print("worst pairs: " + "; ".join(
+                f"{a} : {b} (seed {seed}) share {min(m['share']):.1%}, half ratios "
+                f"{m['half'][0]:.2f} / {m['half'][1]:.2f}" for a, b, seed, m in worst))
+            rows = [m["images"] for *_, m in worst]
     if args.sheet:
         write_image(args.sheet, sheet(rows), 8)
 

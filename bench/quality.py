@@ -87,7 +87,7 @@ SEAMLESS = [("seam_z every exemplar", "max", "seam_z", "<", 3.0)]
 ACCEPTANCE_VARIANTS = ("default", "tileable", "512")  # paper: for information only
 
 # Peers' medians from ../shared/design/PEERS.md (parsed from the file when it is present;
-# these copies, taken from it on 2026-11-22, are used only when it is absent or unparsable).
+# these copies of its figures are used only when it is absent or unparsable).
 PEERS_FALLBACK = {
     "resynth": dict(coh_mean=2.01, coh_p95=7.57, compl=1.68, hist=0.63, spec=0.051,
                     abslog2scale=0.029, copy_frac=0.59, cpu_s=1.2, copy_side=55,
@@ -451,7 +451,8 @@ def section(results: list[Result], outdir: Path, elapsed: float, quick: bool,
     """The Markdown section for BENCHMARKS.md."""
     out = ["## Quality: development exemplars scored by texmetrics",
            f"_{common.stamp()}; reproduce with `{COMMAND}{' --quick' if quick else ''}`"
-           f"; section took {elapsed / 60:.1f} min._",
+           f"; section took {elapsed / 60:.1f} min; load average (1 min) at the end: "
+           f"{common.load_average()} (the scores do not depend on it; the times do)._",
            f"Library calls (`synthesize`, seed {SEED}), outputs written as 8-bit PNG to "
            f"`{outdir}/<variant>/<name>.png` and scored from the file by the independent meter "
            f"`{common.shared_rel(common.TEXMETRICS)} --json` (lower is better; scale 1 is "
@@ -469,7 +470,7 @@ def section(results: list[Result], outdir: Path, elapsed: float, quick: bool,
                "median coh_mean <= 1.67, coh_p95 <= 6.97, compl <= 1.68, spec <= 0.05, "
                "copy_side median <= 55 and max <= 80, |log2 scale| < 0.2 on every exemplar. "
                "Tileable: the same plus seam_z < 3 on every exemplar. They apply to `default`, "
-               "`tileable` and `512` (issue 3); `paper` is checked for information.")
+               "`tileable` and `512`; `paper` is checked for information.")
     for r in results:
         out.append("\n".join(check_lines(r)))
     for r in results:

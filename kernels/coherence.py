@@ -18,6 +18,10 @@ from numba import njit
 
 from osmap_kernels.bands import run_bands
 from osmap_kernels.common import EIGHT_NEIGHBOURS, hash_uniform, neighbour, sample
+from osmap_kernels.lattice import NO_LATTICE, lattice_snap
+
+# the exemplar phase map of a lattice of one exemplar (osmap_kernels.lattice): none
+_NO_PHASE = np.zeros((1, 1, 2), np.float32)
 
 # Parameters of one refinement pass.
 #   radius    int64    neighbourhood half-size (matching window (2r+1)^2 of feature vectors)
@@ -150,7 +154,8 @@ def _gather(src, feat, y, x, p, nb, nb_ok, buf):
             n += 1
 
 
-def refine_pass(src, dst, feat, jac, knn, occ, area, gex, gout, p):
+def refine_pass(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice=NO_LATTICE,
+                phase_map=_NO_PHASE):
     """One red-black pass: for pixels of colour p.parity, write the best candidate into dst.
 
     src, dst float32[H, W, 2] (dst must be a copy of src); feat float32[h, w, F] exemplar
@@ -158,13 +163,20 @@ def refine_pass(src, dst, feat, jac, knn, occ, area, gex, gout, p):
     similar exemplar positions; occ float32[h, w] occupancy; area float32[H, W] the size of each
     pixel's copy region (copy_region_areas); gex float32[h, w] and gout float32[H, W] the
     exemplar and output guides, read only when p.guide != 0 (unguided: pass (1, 1) zeros).
+    lattice (osmap_kernels.lattice.LatticeParams) and phase_map (float32 (h, w, 2), or (1, 1,
+    2) for one exemplar): with a lattice (rank > 0), every
+    candidate but the current position is first moved to the nearest position consistent with
+    its pixel (lattice_snap) and dropped if that leaves [p.lo, p.hi]; src should be consistent
+    already (osmap_kernels.lattice.snap_field).
     Row bands run on osmap_kernels.bands' threads.
     """
-    run_bands(_refine_rows, src.shape[0], src, dst, feat, jac, knn, occ, area, gex, gout, p)
+    run_bands(_refine_rows, src.shape[0], src, dst, feat, jac, knn, occ, area, gex, gout, p,
+              lattice, phase_map)
 
 
 @njit(cache=True, nogil=True)
-def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, y0, y1):
+def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice, phase_map, y0,
+                 y1):
     """refine_pass on rows y0 <= y < y1 (reads src, writes only those rows of dst).
 
     Where the Jacobian is the identity and every position in a pixel's window is integral (the
@@ -193,7 +205,7 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, y0, y1):
     implied = np.empty((side * side, 2))
     area8 = np.empty(8)
     # the coherent and k-NN candidates of a pixel, in the order they are costed
-    listed = np.empty((8 * (1 + k), 2))
+    listed = np.empty((8 * (1 + k), 3))  # (row, col, 1 for a neighbour's continuation)
     for y in range(y0, y1):
         for x in range((y + p.parity) % 2, W, 2):
             # J's entries as scalars, not a view jac[y, x] (reference counts, see above)
@@ -265,6 +277,7 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, y0, y1):
                     if cy != y0 or cx != x0:
                         listed[n_listed, 0] = cy
                         listed[n_listed, 1] = cx
+                        listed[n_listed, 2] = 1.0
                         n_listed += 1
                     iy = int(cy + 0.5)
                     ix = int(cx + 0.5)
@@ -273,6 +286,7 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, y0, y1):
                     for j in range(k):
                         listed[n_listed, 0] = _clamp(knn[iy, ix, j, 0] + fy, p.lo[0], p.hi[0])
                         listed[n_listed, 1] = _clamp(knn[iy, ix, j, 1] + fx, p.lo[1], p.hi[1])
+                        listed[n_listed, 2] = 0.0
                         n_listed += 1
             # costed in turn: the current position, the listed ones, then the PatchMatch random
             # search around the best so far, at halving radii, plus one global draw
@@ -299,6 +313,12 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, y0, y1):
                         radius *= 0.5
                     cy = _clamp(np.floor(cy) + (by - np.floor(by)), p.lo[0], p.hi[0])
                     cx = _clamp(np.floor(cx) + (bx - np.floor(bx)), p.lo[1], p.hi[1])
+                if lattice.rank != 0 and c > 0:
+                    continuing = c <= n_listed and listed[c - 1, 2] != 0.0
+                    cy, cx = lattice_snap(cy, cx, y, x, lattice, phase_map,
+                                          lattice.keep if continuing else 0.5)
+                    if cy < p.lo[0] or cy > p.hi[0] or cx < p.lo[1] or cx > p.hi[1]:
+                        continue
                 if fast and _integral_inside(cy, cx, r, h - 1, w - 1):
                     # _total_cost in place (see the docstring): the seam penalty ...
                     seam = 0.0
@@ -365,18 +385,28 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, y0, y1):
             dst[y, x, 1] = bx
 
 
-def knn_table(feat, lo0, hi0, lo1, hi1, k, stride, exclude):
-    """For every exemplar pixel, the k positions (from a grid of the given stride inside the
-    valid box) with the nearest appearance features, excluding those within `exclude` pixels.
-    Returns int32[h, w, k, 2]; ties are broken by scan order."""
-    out = np.zeros((feat.shape[0], feat.shape[1], k, 2), np.int32)
-    run_bands(_knn_rows, feat.shape[0], feat, lo0, hi0, lo1, hi1, k, stride, exclude, out)
+# Parameters of a k-NN table of similar positions (knn_table).
+#   lo, hi    (int, int)  the box of reference positions (row, col), inclusive
+#   k         int64       positions per pixel
+#   stride    int64       step of the reference grid inside the box
+#   exclude   int64       references within this many pixels of the pixel (both axes) are skipped
+KnnParams = namedtuple("KnnParams", "lo hi k stride exclude")
+
+
+def knn_table(feat, p):
+    """For every exemplar pixel, the p.k positions (from a grid of step p.stride inside the box
+    p.lo..p.hi) with the nearest appearance features, excluding those within p.exclude pixels.
+    Returns int32[h, w, k, 2]; ties are broken by scan order. p: KnnParams."""
+    out = np.zeros((feat.shape[0], feat.shape[1], p.k, 2), np.int32)
+    run_bands(_knn_rows, feat.shape[0], feat, p, out)
     return out
 
 
 @njit(cache=True, nogil=True)
-def _knn_rows(feat, lo0, hi0, lo1, hi1, k, stride, exclude, out, y0, y1):
+def _knn_rows(feat, p, out, y0, y1):
     """knn_table's rows y0 <= y < y1, written into out."""
+    lo0, hi0, lo1, hi1 = p.lo[0], p.hi[0], p.lo[1], p.hi[1]
+    k, stride, exclude = p.k, p.stride, p.exclude
     h, w, nf = feat.shape
     ref_y = np.arange(lo0, hi0 + 1, stride)
     ref_x = np.arange(lo1, hi1 + 1, stride)

@@ -13,6 +13,7 @@ import numpy as np
 from numba import njit
 
 from osmap_kernels.common import EIGHT_NEIGHBOURS, neighbour, sample
+from osmap_kernels.lattice import NO_LATTICE, lattice_shift_ok
 
 # Parameters of one alignment pass.
 #   radius    int64    matching window half-size, as in RefineParams
@@ -21,7 +22,10 @@ from osmap_kernels.common import EIGHT_NEIGHBOURS, neighbour, sample
 #   seam      float64  cost per 8-neighbour whose position does not continue a pixel's
 #   max_area  float64  a shift may not merge two copies into one larger than this (pixels)
 #   reach     int64    shifts tried: every (dy, dx) with |dy|, |dx| <= reach
-AlignParams = namedtuple("AlignParams", "radius wrap lo hi seam max_area reach")
+#   lattice   osmap_kernels.lattice.LatticeParams: with a lattice (rank > 0), only the shifts
+#             that keep a consistent copy consistent (lattice_shift_ok)
+AlignParams = namedtuple("AlignParams", "radius wrap lo hi seam max_area reach lattice",
+                         defaults=(NO_LATTICE,))
 
 # neighbours whose positions continue each other to within this (each axis) are one copy
 COPY_TOL = 1e-3
@@ -304,6 +308,8 @@ def _best_shift(feat, fixed, base, target, merges, shifts, lo_pos, hi_pos, p):
         sy, sx = shifts[j, 0], shifts[j, 1]
         if (lo_pos[0] + sy < p.lo[0] or hi_pos[0] + sy > p.hi[0]
                 or lo_pos[1] + sx < p.lo[1] or hi_pos[1] + sx > p.hi[1]):
+            continue
+        if p.lattice.rank != 0 and not lattice_shift_ok(sy, sx, p.lattice):
             continue
         cost = _shift_cost(feat, fixed, base, target, merges, sy, sx, p.seam, best_cost)
         if cost < best_cost:

@@ -75,10 +75,12 @@ def positions_jacobian(positions: np.ndarray, meta: dict) -> np.ndarray:
 def apply_image(uv: str, map_path: str, output: str, normal: bool | None,
                 bit_depth: str | None) -> str:
     """Render one 2D position map on one map and write it; returns the summary line."""
+    from osmap_cli.image_formats import check_jpeg_channels
     from osmap_cli.imageio import encode_image, output_depth, read_image
     from osmap_cli.materials import render_map
     from osmap_cli.output import write_atomically
     from osmap_cli.provenance import header
+    from osmap_cli.synth.job import map_renderer
     from osmap_cli.synth.render import render_settings
 
     output_depth(output, bit_depth, 1, 8)  # path and --bit-depth checks before any work
@@ -95,9 +97,7 @@ def apply_image(uv: str, map_path: str, output: str, normal: bool | None,
                          "the map must be aligned with the exemplar")
     names = tuple(image.channel_names)
     fmt, depth = output_depth(output, bit_depth, len(names), image.bit_depth)
-    if fmt == "jpeg" and len(names) in (2, 4) and names[-1] != "A":
-        raise OsmapError(f"{output}: JPEG cannot store {len(names)} channels "
-                         f"({', '.join(names)}); use .png, .tif or .exr")
+    check_jpeg_channels(output, fmt, names)
     is_normal = _is_normal(map_path, normal)
     jacobian = positions_jacobian(positions, meta)
     try:
@@ -105,7 +105,8 @@ def apply_image(uv: str, map_path: str, output: str, normal: bool | None,
     except ValueError:
         recorded = {}
     wrap, blend = render_settings(recorded if isinstance(recorded, dict) else {})
-    pixels = render_map(image, positions, jacobian, is_normal, map_path, wrap, blend)
+    draw = map_renderer(positions, jacobian, wrap, blend)
+    pixels = render_map(image, draw, jacobian, is_normal, map_path)
     args = ["--bit-depth", str(depth)]
     if normal is not None:
         args.insert(0, "--normal" if normal else "--not-normal")

@@ -5,9 +5,9 @@ A job is one unit of a batch (one exemplar -> its outputs). Every job type subcl
 them against the outputs it will write, ``compute``, ``stage`` every output in one output
 transaction (osmap_cli.output), which is then committed, all or nothing. :func:`run_jobs` runs a
 list of jobs, in this process (``-j 1``), in ``-j N`` spawned worker processes or as tasks on a
-Dask cluster (osmap_cli.cluster, ``--scheduler``), reports each finished job (one line, or one
-JSON object with ``--json``), and returns the exit code: 0 when no job failed, 1 otherwise.
-A job's bytes do not depend on how it was run.
+Dask cluster (osmap_cli.cluster, ``--scheduler``), reports each finished job's record
+(osmap_cli.records: one line, or one JSON object with ``--json``), and returns the exit code: 0
+when no job failed, 1 otherwise. A job's bytes do not depend on how it was run.
 
 This module knows nothing of the command line: errors are OsmapError, output goes to
 stdout / stderr as plain lines.
@@ -21,8 +21,9 @@ import sys
 import time
 
 from osmap_cli.errors import OsmapError
+from osmap_cli.records import failed_record, job_record, run_caught
 
-__all__ = ["Job", "job_record", "run_jobs", "skip_or_refuse"]
+__all__ = ["Job", "run_jobs", "skip_or_refuse"]
 
 
 class Job:
@@ -83,15 +84,6 @@ class Job:
         return record
 
 
-def job_record(job, status: str, started: float, **more) -> dict:
-    """A finished job's record: the job's `describe()` fields, seconds, status and MORE."""
-    record = {**job.describe(), "seconds": round(time.monotonic() - started, 3),
-              "status": status}
-    record.update(more)
-    return record
-
-
-
 def skip_or_refuse(job, started: float) -> dict | None:
     """The "skipped" record when an output exists and the job may not replace it; raises
     OsmapError when the job is refused; None when it may run."""
@@ -109,31 +101,6 @@ def skip_or_refuse(job, started: float) -> dict | None:
 # running many jobs
 
 
-def _failure(job, message: str, started: float, internal: bool = False) -> dict:
-    text = " ".join(str(message).split())
-    if job.exemplar not in text:
-        text = f"{job.exemplar}: {text}"
-    record = job_record(job, "failed", started, error=text)
-    record["_internal"] = internal
-    return record
-
-
-def _run_caught(job, debug: bool = False) -> dict:
-    """job.run(), with every failure turned into a "failed" record (for batches and workers)."""
-    started = time.monotonic()
-    try:
-        return job.run()
-    except OsmapError as exc:
-        return _failure(job, str(exc), started)
-    except Exception as exc:  # noqa: BLE001 - one broken job must not stop the batch
-        record = _failure(job, f"{type(exc).__name__}: {exc}", started, internal=True)
-        if debug:
-            import traceback
-
-            record["_traceback"] = traceback.format_exc()
-        return record
-
-
 def _init_worker(threads: int) -> None:
     # before Numba is imported in this process; a value the user set wins
     os.environ.setdefault("NUMBA_NUM_THREADS", str(threads))
@@ -143,9 +110,9 @@ def _init_worker(threads: int) -> None:
 
 def _worker_job(job, debug: bool) -> dict:
     try:
-        return _run_caught(job, debug)
+        return run_caught(job, debug)
     except KeyboardInterrupt:
-        return _failure(job, "interrupted", time.monotonic())
+        return failed_record(job, "interrupted", time.monotonic())
 
 
 def _say(line: str, err: bool = False) -> None:
@@ -201,7 +168,7 @@ def run_jobs(jobs: list, workers: int = 1, fail_fast: bool = False,
         not_run = run_cluster(jobs, cluster, fail_fast, debug, report)
     elif workers <= 1 or len(jobs) == 1:
         for position, job in enumerate(jobs):
-            record = _run_caught(job, debug)
+            record = run_caught(job, debug)
             report(record)
             if fail_fast and record["status"] == "failed":
                 not_run = len(jobs) - position - 1

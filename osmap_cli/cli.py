@@ -12,6 +12,11 @@ out-of-range option values, including click's own parse errors). Ctrl-C prints
 closed stdout (``osmap presets | head -0``) ends the run quietly with 141, as Unix tools do.
 Anything unexpected prints ``osmap: internal error: ...`` and exits with 1; ``osmap --debug ...``
 or ``OSMAP_DEBUG=1`` adds the Python traceback.
+
+The console script is :func:`run`: :func:`main`, then :func:`exit_now`, which ends the process
+without the interpreter's teardown (a Numba process spends 0.1-0.2 s in it) once the standard
+streams are flushed and every exit handler has run. A stop signal that lands after the command
+(while its outputs are already committed) is reported like one during it.
 """
 
 from __future__ import annotations
@@ -26,7 +31,8 @@ import click
 from osmap_cli import __version__
 from osmap_cli.errors import OsmapError, Terminated, UsageError
 
-__all__ = ["EXIT_ERROR", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "cli", "main"]
+__all__ = ["EXIT_ERROR", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "cli", "exit_now", "main",
+           "run"]
 
 EXIT_OK = 0
 EXIT_ERROR = 1
@@ -53,7 +59,7 @@ LAZY_COMMANDS: dict[str, tuple[str, str, str]] = {
     "presets": ("osmap_cli.commands.presets", "presets_command",
                 "List or show the tuning presets."),
     "warmup": ("osmap_cli.commands.warmup", "warmup_command",
-               "Compile the synth kernels now, not on the first synth."),
+               "Compile the kernels for this CPU now."),
 }
 
 # The order of `osmap --help`'s command list.
@@ -170,16 +176,22 @@ def _fail(message: str, code: int, exc: BaseException | None = None,
     return code
 
 
+_STOP_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
+
 # numpy's BLAS is used only for small matrices (PCA of the exemplar); its worker threads busy-wait
 # after each call and steal cores from the Numba kernels. Set before numpy is imported; a value
 # in the environment wins.
 _SINGLE_THREADED_BLAS = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the command line; returns the exit code (the console script exits with it)."""
+def _single_threaded_blas() -> None:
     for variable in _SINGLE_THREADED_BLAS:
         os.environ.setdefault(variable, "1")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit code (the console script exits with it)."""
+    _single_threaded_blas()
     state = {"debug": os.environ.get("OSMAP_DEBUG", "").strip().lower() in ("1", "true", "yes")}
     threads = os.environ.get("NUMBA_NUM_THREADS")
     if threads is not None and not (threads.strip().isdigit() and int(threads) >= 1):
@@ -206,14 +218,14 @@ def _latched_signals():
         return
     from osmap_cli import progress
 
-    names = [n for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n)]
+    names = [n for n in _STOP_SIGNALS if hasattr(signal, n)]
     previous = {n: signal.getsignal(getattr(signal, n)) for n in names}
     progress.latch_interrupts()
     try:
         yield
     finally:
         for name, handler in previous.items():
-            signal.signal(getattr(signal, name), handler)
+            signal.signal(getattr(signal, name), _record_stop if _console[0] else handler)
         progress.reset_interrupt()
 
 
@@ -269,5 +281,77 @@ def _closed_stdout() -> int:
     return 128 + getattr(signal, "SIGPIPE", 13)
 
 
+# ---------------------------------------------------------------------------------------------
+# the console script and its exit
+
+_console = [False]  # running as the console script: stop signals after the command are recorded
+_stopped_after: list = [None]  # a stop signal that arrived after the command
+
+
+def run() -> None:
+    """The `osmap` console script: main(), then exit_now() with its code.
+
+    Stop signals are only recorded outside the command (main latches them during it), so one
+    that lands while the process ends, after the outputs are committed, still exits with
+    128 + its number and one line, instead of killing the interpreter half torn down.
+    """
+    _console[0] = True
+    _single_threaded_blas()  # before prepare() may import numpy
+    os.environ.setdefault("OSMAP_KERNELS", "auto")
+    os.environ.setdefault("OSMAP_QUICK_LOADS", "1")  # osmap_kernels.cacheload
+    from osmap_cli import kernelwarm
+
+    kernelwarm.prepare()
+    exit_now(main())
+
+
+def _record_stop(signum, frame) -> None:
+    _stopped_after[0] = signum
+
+
+def exit_now(code: int) -> None:
+    """End the process with CODE, skipping the interpreter's teardown.
+
+    Skipped is only what Python does after the exit handlers: freeing every object and module,
+    and joining idle worker threads. Kept, in order: flushing stdout and stderr; the exit
+    handlers (atexit: temporary folders, multiprocessing's children and semaphores, anything a
+    library registered); a background compile for this CPU when the run used the portable
+    kernels (osmap_cli.kernelwarm). Every output was committed or removed by the command
+    itself, progress bars are closed by their jobs, a local Dask cluster by its `with` block.
+    """
+    import atexit
+    import signal
+
+    stdout_closed = False
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        stdout_closed = True
+    except (OSError, ValueError):
+        pass
+    if stdout_closed:
+        code = _closed_stdout()
+    with contextlib.suppress(Exception):
+        atexit._run_exitfuncs()
+    if code == EXIT_OK:
+        from osmap_cli import kernelwarm
+
+        kernelwarm.after_run()
+    stops = {getattr(signal, n) for n in _STOP_SIGNALS if hasattr(signal, n)}
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_BLOCK, stops)
+    signum = _stop_recorded()  # a handler still pending has run by the time this returns
+    if signum is not None:
+        code = _fail("interrupted" if signum == signal.SIGINT else "terminated", 128 + signum)
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(code)
+
+
+def _stop_recorded() -> int | None:
+    return _stopped_after[0]
+
+
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    run()

@@ -3,7 +3,7 @@
 One task per job, sent to Dask's distributed scheduler: an existing cluster (its address, or the
 file ``dask-scheduler --scheduler-file`` writes), or ``local:N``, a cluster of N single-threaded
 worker processes started here on 127.0.0.1 only and closed at the end. The workers run each
-job exactly as ``-j`` does (``Job.run`` through ``batch._run_caught``: the same atomic writes,
+job exactly as ``-j`` does (``Job.run`` through ``records.run_caught``: the same atomic writes,
 skip / overwrite rules and records) and write its outputs themselves, so the output folder must
 be on a file system the workers share; the records come back here and are reported as they
 complete by the caller's reporter (osmap_cli.batch.run_jobs), so lines, --json, the summary and
@@ -26,7 +26,7 @@ the exit codes are those of ``-j``.
 
 distributed is imported only here and only when a batch uses a cluster (``pip install
 'osmap[cluster]'``); at import time this module needs only the standard library and
-osmap_cli.errors.
+osmap_cli.errors and osmap_cli.records.
 """
 
 from __future__ import annotations
@@ -42,6 +42,7 @@ import uuid
 from dataclasses import dataclass
 
 from osmap_cli.errors import OsmapError
+from osmap_cli.records import failed_record, run_caught
 
 __all__ = ["ClusterSpec", "EXTRA_HINT", "available", "parse_scheduler", "run_cluster",
            "start_local_cluster"]
@@ -114,10 +115,8 @@ def _set_numba_threads(threads: int) -> str | None:
 
 
 def _task(job, cwd: str, threads: int, debug: bool, stop: str | None):
-    """Run JOB on a worker: its record (batch._run_caught), or _NOT_RUN when the STOP event is
+    """Run JOB on a worker: its record (records.run_caught), or _NOT_RUN when the STOP event is
     set (--fail-fast)."""
-    from osmap_cli.batch import _failure, _run_caught
-
     with _JOB_LOCK:
         if stop is not None:
             from distributed import Event
@@ -129,18 +128,18 @@ def _task(job, cwd: str, threads: int, debug: bool, stop: str | None):
             warning = _set_numba_threads(threads)
             before = os.getcwd()
         except Exception as exc:  # noqa: BLE001 - reported as the job's failure
-            return _failure(job, f"worker set-up: {type(exc).__name__}: {exc}", started,
-                            internal=True)
+            return failed_record(job, f"worker set-up: {type(exc).__name__}: {exc}",
+                                 started, internal=True)
         try:
             os.chdir(cwd)
         except OSError as exc:
             import socket
 
-            return _failure(job, f"{cwd}: cannot enter the batch's working folder on worker "
-                            f"{socket.gethostname()} ({exc.strerror or exc}); the workers "
-                            "need the same file system at the same paths", started)
+            return failed_record(job, f"{cwd}: cannot enter the batch's working folder on "
+                                 f"worker {socket.gethostname()} ({exc.strerror or exc}); the "
+                                 "workers need the same file system at the same paths", started)
         try:
-            record = _run_caught(job, debug)
+            record = run_caught(job, debug)
         finally:
             with contextlib.suppress(OSError):
                 os.chdir(before)
@@ -206,15 +205,13 @@ def start_local_cluster(workers: int, threads: int = 1):
 
 def _lost(job, exc: BaseException, started: float) -> dict:
     """The failed record of a task that raised (a worker that died too often, ...)."""
-    from osmap_cli.batch import _failure
-
     name = type(exc).__name__
     if name == "KilledWorker":
         text = ("the worker running it died, and again on the retry (Dask KilledWorker); "
                 "the job may need more memory than a worker has")
     else:
         text = f"on the cluster: {name}: {exc}"
-    return _failure(job, text, started, internal=True)
+    return failed_record(job, text, started, internal=True)
 
 
 def run_cluster(jobs: list, spec: ClusterSpec, fail_fast: bool, debug: bool, report) -> int:

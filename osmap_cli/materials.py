@@ -10,6 +10,9 @@ files: n = 2 v - 1; float files: as stored when any value is negative, else 2 v 
 with the texture (OpenGL convention: +x right, +y up, the rotation and stretch part of the
 Jacobian; ``--scale`` does not flatten them: features keep their slopes), renormalised to unit
 length after bilinear rendering, and encoded back the same way.
+
+The rendering itself is the caller's (the command that drew the texture passes its renderer):
+this module knows the maps, not how a command renders.
 """
 
 from __future__ import annotations
@@ -94,21 +97,12 @@ def _colour(image) -> list[int]:
             if k != image.alpha_channel and n != "A"]
 
 
-def render_map(image, positions: np.ndarray, jacobian: np.ndarray, normal: bool,
-               path: str = "", wrap: bool = False, blend: int = 0) -> np.ndarray:
-    """float32 (H, W, C): `image` rendered through `positions` (H, W, 2, row/col).
-
-    `jacobian` is (2, 2) or (H, W, 2, 2), output-to-exemplar in row/col order; it carries the
-    seam-blending votes (`blend`, `wrap`: as the synthesis rendered, see
-    synth.render.render_settings) and rotates normal maps.
+def render_map(image, draw, jacobian: np.ndarray, normal: bool, path: str = "") -> np.ndarray:
+    """float32 (H, W, C): `image` rendered by draw(pixels) -> (H, W, C), the renderer the
+    texture itself was drawn with (its positions and seam blending), so the map stays aligned
+    with it; normal maps are decoded first and turned by `jacobian` ((2, 2) or (H, W, 2, 2),
+    output-to-exemplar in row/col order) after.
     """
-    from osmap_cli.synth.render import render
-
-    field = np.broadcast_to(np.asarray(jacobian, np.float32), (*positions.shape[:2], 2, 2))
-
-    def draw(pixels):
-        return render(pixels, positions, field, wrap, blend)
-
     if not normal:
         return draw(image.pixels)
     colour = _colour(image)

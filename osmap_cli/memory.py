@@ -30,10 +30,9 @@ def texture_bytes(width: int, height: int, channels: int, extra_channels: int = 
     """Peak working set of `osmap synth` for a WxH output: positions, the Jacobian field,
     copy-region labels per pixel, the output and its converted copy per channel, and
     EXTRA_CHANNELS of --with maps and --uv-out rendered beside it. Kept on the safe side (124
-    bytes per pixel with 3 channels): measured since issue 14's large-output work, about 37
-    bytes per pixel above the libraries at 1024 px and 63 at 4096 px (BENCHMARKS.md "Memory"
-    and "Large outputs"), so at 4096 px the estimate is about 1.7x the peak. `atlas`: several
-    exemplars (--also) on top."""
+    bytes per pixel with 3 channels): the measured peak is about 37 bytes per pixel above the
+    libraries at 1024 px and 63 at 4096 px (BENCHMARKS.md "Memory" and "Large outputs"), so at
+    4096 px the estimate is about 1.7x the peak. `atlas`: several exemplars (--also) on top."""
     pixels = int(width) * int(height)
     total = BASE_BYTES + pixels * (88 + 12 * int(channels) + 12 * int(extra_channels))
     if atlas:

@@ -117,7 +117,8 @@ def validate(options) -> None:
         spec, value = f.metadata["spec"], getattr(options, f.name)
         name = flag(f.name)
         if spec.kind is bool:
-            if not isinstance(value, bool) and type(value).__name__ != "bool_":
+            # numpy's truth values: numpy.bool_ ("bool" since numpy 2)
+            if not isinstance(value, bool) and type(value).__name__ not in ("bool", "bool_"):
                 raise OsmapError(f"{name}: expected true or false, got {value!r}")
         elif spec.kind is str:
             if spec.choices and value not in spec.choices:
@@ -159,6 +160,8 @@ def number_text(value) -> str:
     """The shortest text that reads back as exactly `value` (flags, TOML)."""
     if isinstance(value, bool):
         return "true" if value else "false"
+    if isinstance(value, str):  # a free-text option (no choices)
+        return value
     if isinstance(value, int):
         return str(value)
     value = float(value)
@@ -171,7 +174,7 @@ def flag_args(options, baseline) -> list[str]:
     for name in tunables(options):
         value = getattr(options, name)
         if baseline is None or value != getattr(baseline, name):
-            args += [flag(name), number_text(value)]
+            args += [flag(name), value if isinstance(value, str) else number_text(value)]
     return args
 
 
@@ -187,7 +190,8 @@ def preset_toml(cls, table: str, name: str, description: str, values: dict,
     for key, spec in specs.items():
         value = values.get(key, getattr(defaults, key))
         if spec.kind is str:
-            lines.append(f'{key} = "{value}"'.ljust(width) + f"# {', '.join(spec.choices)}")
+            lines.append(f'{key} = "{value}"'.ljust(width)
+                         + f"# {', '.join(spec.choices) or spec.help}")
             continue
         text = number_text(float(value) if spec.kind is float else value)
         if spec.kind is float and "." not in text and "e" not in text:
@@ -203,7 +207,7 @@ def usage_rows(cls) -> list[str]:
     for key, spec in tunables(cls).items():
         if spec.kind is str:
             rows.append(f"| `{flag(key)} M` | {getattr(defaults, key)} | "
-                        f"{', '.join(spec.choices)} | {spec.help} |")
+                        f"{', '.join(spec.choices) or 'text'} | {spec.help} |")
             continue
         metavar = "N" if spec.kind is int else "X"
         default = number_text(getattr(defaults, key))

@@ -9,12 +9,16 @@ Each output is written to a hidden temporary sibling of its target (a short name
 target name of up to 255 bytes still works), flushed and synced to disk, and verified by its
 writer (images are read back). Only when every output of the run is complete are they moved onto
 their targets; if anything fails first (a full disk, a signal, a bad value) every temporary is
-removed and no target is touched. Error messages name the target, never the temporary.
+removed and no target is touched. The commit keeps each previous output under a hidden name
+until every rename and the sync of their directories have succeeded: if one fails, the outputs
+already moved are put back, so a run replaces all of its outputs or none. Error messages name
+the target, never the temporary.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import secrets
 import shutil
@@ -51,10 +55,22 @@ def check_parent(path: str, label: str | None = None) -> None:
         raise OsmapError(f"{label}: output directory {shown} is not writable")
 
 
+# a file system that cannot sync a directory says so with one of these: nothing to do there
+_NO_DIRECTORY_SYNC = {errno.EINVAL, errno.ENOTSUP, errno.EOPNOTSUPP}
+
+
 def _fsync_path(path: str) -> None:
-    fd = os.open(path, os.O_RDONLY)
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except PermissionError:
+        if os.path.isdir(path):
+            return  # a directory we may write but not read cannot be opened to sync it
+        raise
     try:
         os.fsync(fd)
+    except OSError as exc:
+        if not (exc.errno in _NO_DIRECTORY_SYNC and os.path.isdir(path)):
+            raise
     finally:
         os.close(fd)
 
@@ -65,6 +81,41 @@ def _fsync_tree(path: str) -> None:
         for name in sorted(os.listdir(path)):
             _fsync_tree(os.path.join(path, name))
     _fsync_path(path)
+
+
+def _is_folder(path: str) -> bool:
+    return os.path.isdir(path) and not os.path.islink(path)
+
+
+def _set_aside(temp: str, fspath: str) -> tuple[str | None, bool]:
+    """Keep the previous output at FSPATH under a hidden name until the commit is done:
+    (that name or None when there is none, whether FSPATH was moved away for it). A file stays
+    in place (a second hard link keeps it); a folder, which cannot be replaced in one step, and
+    a file on a file system without hard links are moved."""
+    if not os.path.lexists(fspath) or (_is_folder(fspath) and not _is_folder(temp)):
+        return None, False  # nothing to keep, or os.replace refuses anyway
+    backup = temp_path(fspath)
+    if not _is_folder(fspath):
+        try:
+            os.link(fspath, backup, follow_symlinks=False)
+            return backup, False
+        except OSError:
+            pass
+    os.replace(fspath, backup)
+    return backup, True
+
+
+def _put_back(fspath: str, backup: str | None, moved: bool, replaced: bool) -> None:
+    """Undo one output's commit as far as it went (best effort: this runs after a failure)."""
+    with contextlib.suppress(OSError):
+        if replaced and (backup is None or moved):
+            aside = temp_path(fspath)
+            os.replace(fspath, aside)  # the new output, removed below
+            _remove(aside)
+        if backup is not None and (moved or replaced):
+            os.replace(backup, fspath)
+        elif backup is not None:
+            _remove(backup)  # a link to the untouched previous output
 
 
 @contextlib.contextmanager
@@ -135,25 +186,34 @@ class Outputs:
         self._staged.append((temp, target))
 
     def commit(self) -> None:
-        """Move every staged output onto its target (a previous slice folder is replaced)."""
-        directories = set()
-        for temp, target in self._staged:
-            fspath = _strip(target)
-            try:
-                if os.path.isdir(temp) and os.path.isdir(fspath):
-                    old = temp_path(fspath)
-                    os.replace(fspath, old)
+        """Move every staged output onto its target (a previous slice folder is replaced) and
+        sync their directories; on any failure every target is left as it was."""
+        done: list[tuple[str, str | None, bool]] = []  # (target path, backup, moved)
+        target = ""
+        try:
+            for temp, target in self._staged:
+                fspath = _strip(target)
+                backup, moved = _set_aside(temp, fspath)
+                try:
                     os.replace(temp, fspath)
-                    _remove(old)
-                else:
-                    os.replace(temp, fspath)
-            except OSError as exc:
+                except BaseException:
+                    _put_back(fspath, backup, moved, replaced=False)
+                    raise
+                done.append((fspath, backup, moved))
+            for directory in sorted({os.path.dirname(os.path.abspath(p)) for p, _, _ in done}):
+                target = next(t for _, t in self._staged
+                              if os.path.dirname(os.path.abspath(_strip(t))) == directory)
+                _fsync_path(directory)  # the renames themselves reach the disk
+        except BaseException as exc:
+            for fspath, backup, moved in reversed(done):
+                _put_back(fspath, backup, moved, replaced=True)
+            if isinstance(exc, OSError):
                 raise OsmapError(f"{target}: cannot write file ({exc.strerror or exc})") from None
-            directories.add(os.path.dirname(os.path.abspath(fspath)))
+            raise
         self._staged = []
-        for directory in sorted(directories):  # the renames themselves reach the disk
-            with contextlib.suppress(OSError):
-                _fsync_path(directory)
+        for _, backup, _ in done:
+            if backup is not None:
+                _remove(backup)
 
     def discard(self) -> None:
         """Remove every staged temporary; no target is touched."""

@@ -1,4 +1,4 @@
-"""Independent point samplers for the surface tests and the fold-rate benchmark (issue 17).
+"""Independent point samplers for the surface tests and the fold-rate benchmark.
 
 They deliberately do not use `osmap_cli.surface.shapes`: the roll is sampled by rejection on its
 arc-length density sqrt(1 + t^2) (shapes.py inverts the arc length by Newton's method), the torus

@@ -128,14 +128,24 @@ def test_apply_volume_position_map(run_cli, material, tmp_path):
     np.save(tmp_path / "vol_uv.npy", uv)
     result = run_cli("apply", tmp_path / "vol_uv.npy", material / "rock_rough.png", "-o",
                      tmp_path / "vol.npy")
-    try:
-        from osmap_cli.solid import render_volume  # noqa: F401
-    except (ImportError, AttributeError):
-        assert result.code == 1 and "render_volume" in result.err
-        return
     assert result.code == 0, result.err
     volume = np.load(tmp_path / "vol.npy")
     rough = read_image(material / "rock_rough.png").pixels
     assert volume.shape == (4, 5, 6, 1)
     expected = rough[uv[..., 1].astype(int), uv[..., 0].astype(int)]
-    assert np.allclose(volume, expected)
+    assert np.array_equal(volume, expected)  # the exemplar pixels, copied (no blending)
+
+
+def test_apply_volume_without_the_solid_renderer_is_one_line(run_cli, material, tmp_path,
+                                                             monkeypatch):
+    """An osmap whose solid package lacks render_volume refuses a volume position map with one
+    line naming it, and writes nothing."""
+    from osmap_cli.solid import render
+
+    np.save(tmp_path / "vol_uv.npy", np.zeros((4, 5, 6, 3), np.float32))
+    monkeypatch.delattr(render, "render_volume")
+    result = run_cli("apply", tmp_path / "vol_uv.npy", material / "rock_rough.png", "-o",
+                     tmp_path / "vol.npy")
+    assert result.code == 1 and len(result.err_lines) == 1, result.err
+    assert "vol_uv.npy: volume position maps need osmap solid's render_volume" in result.err
+    assert sorted(os.listdir(tmp_path)) == ["vol_uv.npy"]

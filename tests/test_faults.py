@@ -81,9 +81,25 @@ CASES = [
 ]
 
 
+@pytest.fixture(scope="module")
+def first_outputs(tmp_path_factory):
+    """The outputs of each case's run without a limit, made once for both limits."""
+    made = {}
+
+    def outputs_of(case, args):
+        if case not in made:
+            folder = tmp_path_factory.mktemp("first")
+            first = _osmap(args, folder)
+            assert first.returncode == 0, first.stderr
+            made[case] = _snapshot(folder)
+        return made[case]
+
+    return outputs_of
+
+
 @pytest.mark.parametrize("where", ["middle", "last bytes"])
 @pytest.mark.parametrize("case", CASES, ids=[c[0] for c in CASES])
-def test_full_disk_leaves_the_previous_output(tmp_path, exemplar, case, where):
+def test_full_disk_leaves_the_previous_output(tmp_path, exemplar, first_outputs, case, where):
     _, command, outputs, limited = case
     outputs = [a.format(dir=exemplar.parent) for a in outputs]
     if command == "synth":
@@ -92,8 +108,9 @@ def test_full_disk_leaves_the_previous_output(tmp_path, exemplar, case, where):
         args = ["solid", exemplar, *outputs, *SOLID]
     else:
         args = ["surface", *outputs, *SURFACE]
-    first = _osmap(args, tmp_path)
-    assert first.returncode == 0, first.stderr
+    for name, data in first_outputs(case[0], args).items():  # the previous outputs
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_bytes(data)
     before = _snapshot(tmp_path)
     size = (tmp_path / limited).stat().st_size
     limit = size // 2 if where == "middle" else size - 2
@@ -101,6 +118,36 @@ def test_full_disk_leaves_the_previous_output(tmp_path, exemplar, case, where):
     _assert_clean_failure(done, 1, before, tmp_path)
     assert "cannot write" in done.stderr or "failed to write" in done.stderr \
         or "incomplete" in done.stderr, done.stderr
+
+
+def test_a_jpeg_on_a_full_disk_fails_once_threads_have_run(tmp_path, exemplar):
+    """A pyramid (OpenImageIO's thread pool at work) before a JPEG that does not fit: one
+    error line, not a hang. JPEG used to be encoded in a forked child, where libjpeg's exit()
+    on the failed write waited forever for pool threads that had not been forked (and a killed
+    run left the child running and its temporary file behind)."""
+    args = ["synth", exemplar, "-o", "out.jpg", "--size", "24", "--preset", "fast", "-q"]
+    first = _osmap(args, tmp_path)
+    assert first.returncode == 0, first.stderr
+    before = _snapshot(tmp_path)
+
+    def child():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        limit = (tmp_path / "out.jpg").stat().st_size // 2
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    code = "import sys; from osmap_cli.cli import main; sys.exit(main(sys.argv[1:]))"
+    process = subprocess.Popen([sys.executable, "-c", code, *map(str, args)], cwd=tmp_path,
+                               stderr=subprocess.PIPE, text=True, preexec_fn=child,
+                               start_new_session=True)
+    try:
+        _, err = process.communicate(timeout=300)  # a few seconds unless it hangs
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)  # the run and any child it forked
+        process.communicate()
+        pytest.fail("writing a JPEG to a full disk hung")
+    done = subprocess.CompletedProcess(process.args, process.returncode, "", err)
+    _assert_clean_failure(done, 1, before, tmp_path)
+    assert "out.jpg: cannot write file" in err, err
 
 
 @pytest.mark.parametrize("signame,code", [("SIGTERM", 143), ("SIGHUP", 129), ("SIGINT", 130)])
@@ -118,6 +165,72 @@ def test_a_signal_mid_run_stops_cleanly(tmp_path, exemplar, signame, code):
     _, err = process.communicate(timeout=120)
     done = subprocess.CompletedProcess(process.args, process.returncode, "", err)
     _assert_clean_failure(done, code, before, tmp_path)
+
+
+@pytest.mark.parametrize("signame,code,word", [("SIGINT", 130, "interrupted"),
+                                               ("SIGTERM", 143, "terminated")])
+def test_a_signal_during_shutdown_is_reported(tmp_path, exemplar, signame, code, word):
+    """A stop signal that lands after the output is complete, while the `osmap` process shuts
+    down: the output stays as written, and the exit says what happened (code and one line),
+    as for a signal mid-run. A sitecustomize hook makes the shutdown last long enough to be
+    hit on purpose."""
+    script = Path(sys.executable).with_name("osmap")
+    if not script.exists():
+        pytest.skip("the osmap console script is not installed next to this interpreter")
+    hook, flag = tmp_path / "hook", tmp_path / "shutting-down"
+    hook.mkdir()
+    (hook / "sitecustomize.py").write_text(
+        "import atexit, time\n"
+        "def slow_shutdown():\n"
+        f"    open({str(flag)!r}, 'w').close()\n"
+        "    time.sleep(3)\n"
+        "atexit.register(slow_shutdown)\n")
+    work = tmp_path / "work"
+    work.mkdir()
+    env = {**os.environ, "PYTHONPATH": str(hook)}
+    process = subprocess.Popen([str(script), "synth", str(exemplar), "-o", "out.png", *SYNTH],
+                               cwd=work, env=env, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not flag.exists() and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert flag.exists(), "the run ended before its shutdown began"
+    process.send_signal(getattr(signal, signame))
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == code, err
+    assert err.splitlines() == [f"osmap: {word}"], err
+    assert (work / "out.png").stat().st_size > 0
+    assert not list(work.glob(".osmap-*")), "temporary file left"
+
+
+@pytest.mark.parametrize("how", [("-j", "2"), ("--scheduler", "local:1")], ids=["j2", "dask"])
+def test_the_fast_exit_leaves_no_process_and_no_temporary(tmp_path, exemplar, how):
+    """The console script ends without the interpreter's teardown: worker processes (-j), a
+    local Dask cluster, multiprocessing's resource tracker and temporary files are all gone or
+    going by then, with nothing printed."""
+    if how[0] == "--scheduler":
+        pytest.importorskip("distributed")
+    script = Path(sys.executable).with_name("osmap")
+    if not script.exists():
+        pytest.skip("the osmap console script is not installed next to this interpreter")
+    second = tmp_path / "ex2.png"
+    second.write_bytes(exemplar.read_bytes())
+    process = subprocess.Popen([str(script), "synth", str(exemplar), str(second), "--out-dir",
+                                "out", *SYNTH, *how], cwd=tmp_path, stderr=subprocess.PIPE,
+                               text=True, start_new_session=True)
+    _, err = process.communicate(timeout=300)  # also waits for every child holding stderr
+    assert process.returncode == 0 and err == "", err
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["ex.png", "ex2.png"]
+    assert not list(tmp_path.rglob(".osmap-*"))
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        table = subprocess.run(["ps", "-eo", "sid=,stat=,args="], capture_output=True,
+                               text=True).stdout.splitlines()
+        alive = [row for row in table if row.split()[0] == str(process.pid)
+                 and not row.split()[1].startswith("Z")]
+        if not alive:
+            break
+        time.sleep(0.2)
+    assert not alive, alive
 
 
 def test_long_output_names_work(tmp_path, exemplar):

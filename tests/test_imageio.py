@@ -10,7 +10,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from osmap_cli import imageio
+from osmap_cli import image_write
 from osmap_cli.errors import OsmapError
 from osmap_cli.imageio import output_format, read_image, read_metadata, write_image
 
@@ -530,7 +530,7 @@ def test_failed_write_leaves_nothing(tmp_path, monkeypatch, ext, how):
 
     broken, seen = _half_then(fail)
     seen["dir"] = tmp_path
-    monkeypatch.setattr(imageio, "_write_pixels", broken)
+    monkeypatch.setattr(image_write, "_write_pixels", broken)
     with pytest.raises(OsmapError) as info:
         write_image(tmp_path / f"out.{ext}", _random((64, 64, 3)))
     assert f"out.{ext}" in str(info.value)
@@ -547,7 +547,7 @@ def test_failed_write_keeps_existing_target(tmp_path, monkeypatch):
     before = path.read_bytes()
     broken, seen = _half_then(lambda: False)
     seen["dir"] = tmp_path
-    monkeypatch.setattr(imageio, "_write_pixels", broken)
+    monkeypatch.setattr(image_write, "_write_pixels", broken)
     with pytest.raises(OsmapError, match=r"keep\.png: failed to write PNG"):
         write_image(path, np.zeros((8, 8, 3), np.float32))
     assert _listing(tmp_path) == ["keep.png"]
@@ -558,7 +558,7 @@ def test_failed_replace_removes_temp(tmp_path, monkeypatch):
     def no_replace(src, dst):
         raise PermissionError(13, "Permission denied")
 
-    monkeypatch.setattr(imageio.os, "replace", no_replace)
+    monkeypatch.setattr(image_write.os, "replace", no_replace)
     with pytest.raises(OsmapError, match=r"r\.exr: cannot write file \(Permission denied\)"):
         write_image(tmp_path / "r.exr", _smooth())
     assert _listing(tmp_path) == []

@@ -560,7 +560,7 @@ def test_turn_volume_samples_the_material_turned():
 def test_orientation_turns_the_synthesized_material(exemplar, run_cli, tmp_path):
     """--orientation: the volume is the axis-aligned material of the enclosing box, sampled
     turned; the CLI writes the library's volume and records the angles."""
-    from osmap_cli.provenance import read_provenance
+    from osmap_cli.commands.info import read_provenance
     from osmap_cli.solid.orient import turn_volume
 
     pixels = read_image(exemplar).pixels

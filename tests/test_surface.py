@@ -1,4 +1,4 @@
-"""Issue 5: `osmap surface`, fold-free quad grids on point-sampled surfaces.
+"""`osmap surface`: fold-free quad grids on point-sampled surfaces.
 
 Acceptance (fixed seeds 0, 1, 2) through the Python API, the same defaults as the CLI:
 - torus R 2, r 0.7, 32x32 map wrapping both ways, cylindrical frame: windings correct, shortcut

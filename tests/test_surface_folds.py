@@ -1,4 +1,4 @@
-"""Issue 17: `osmap surface` fits that never fold.
+"""`osmap surface` fits that never fold.
 
 Point clouds come from tests/surface_samplers.py (independent of shapes.py), are written to .xyz
 files and fitted through the CLI with the flags docs/surface.md gives for point files, as users

@@ -87,10 +87,25 @@ def test_no_verbatim_tiling(results, name):
 
 def test_align_moves_copies_into_register(results, samples):
     """Whole-copy shifts (--align) make the borders between copies match: without them the
-    weave's courses step at every border."""
-    exemplar, aligned = results["weave"]
-    unaligned = synthesize(exemplar, SynthOptions(width=SIZE, height=SIZE, seed=1, align=0))
+    weave's courses step at every border. (With its lattice kept, the copies are in register
+    already: the shifts are measured here without it.)"""
+    exemplar, kept = results["weave"]
+    options = SynthOptions(width=SIZE, height=SIZE, seed=1, lattice="off")
+    aligned = synthesize(exemplar, options)
+    unaligned = synthesize(exemplar, options.replace(align=0))
     assert ts.coherence(exemplar, aligned.pixels) < 0.8 * ts.coherence(exemplar, unaligned.pixels)
+    assert ts.coherence(exemplar, kept.pixels) < ts.coherence(exemplar, aligned.pixels)
+
+
+def test_the_weave_keeps_its_lattice(results):
+    """A regular sample keeps its lattice over the whole output (tests/texture_stats.regularity:
+    the output's autocorrelation at the exemplar's period vectors and their multiples, over the
+    exemplar's own peak). Measured at 192x192, seed 1: 0.97 / 0.97; with --lattice off (copies
+    placed freely) 0.93 / 0.85: the weave drifts by a strand between copies."""
+    exemplar, result = results["weave"]
+    assert result.lattice is not None and len(result.lattice.vectors) == 2
+    short, long_ = ts.regularity(exemplar, result.pixels)
+    assert short > 0.95 and long_ > 0.95, (short, long_)
 
 
 def _copy_side(positions):

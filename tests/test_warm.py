@@ -1,4 +1,5 @@
-"""The first-run compile: detected from Numba's cache, announced once, silent with --quiet."""
+"""The first-run compile: detected from Numba's cache (this CPU's entries only), announced once,
+silent with --quiet; the portable kernels that serve a cold cache, and this CPU's taking over."""
 
 from __future__ import annotations
 
@@ -70,10 +71,181 @@ def test_a_refused_size_neither_compiles_nor_announces(cold, run_cli, monkeypatc
     assert "compiling" not in result.err and cold == []
 
 
-def test_warmup_command(cold, run_cli):
+def test_warmup_command(monkeypatch, run_cli):
+    from osmap_cli import kernelwarm
+
+    calls = []
+
+    def fake_warm_host(announce=None, background=False):
+        calls.append(announce is not None)
+        if announce:
+            announce("osmap: compiling 12 kernel signatures for this CPU")
+        return len(calls) == 1
+
+    monkeypatch.setattr(kernelwarm, "warm_host", fake_warm_host)
     first = run_cli("warmup")
-    assert first.code == 0 and "compiling kernels" in first.err
-    assert first.out.strip() == "osmap: kernels compiled" and cold == [["organise", "refine"]]
+    assert first.code == 0 and "compiling 12 kernel" in first.err
+    assert first.out.strip() == "osmap: kernels compiled"
     again = run_cli("warmup")
     assert again.code == 0 and again.out.strip() == "osmap: kernels already compiled"
-    assert run_cli("warmup", "--quiet").out == ""
+    quiet = run_cli("warmup", "--quiet")
+    assert quiet.out == "" and quiet.err == "" and calls == [True, True, False]
+
+    def broken(announce=None, background=False):
+        raise RuntimeError("compiling for this CPU failed (part 1 of 2 (boom))")
+
+    monkeypatch.setattr(kernelwarm, "warm_host", broken)
+    failed = run_cli("warmup")
+    assert failed.code == 1 and failed.err_lines == [
+        "osmap: error: compiling for this CPU failed (part 1 of 2 (boom))"]
+
+
+# ---------------------------------------------------------------------------------------------
+# the portable cache, on one small kernel (coherence.usage_counts) built as the build step does
+
+KERNEL = """
+import numpy as np
+from osmap_kernels.coherence import usage_counts
+usage_counts(np.zeros((4, 4, 2), np.float32), 8, 8)
+"""
+
+
+def _python(code: str, **env) -> str:
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env={**os.environ, **env})
+    assert done.returncode == 0, done.stderr
+    return done.stdout.strip()
+
+
+@pytest.fixture(scope="module")
+def portable(tmp_path_factory):
+    """A portable cache root holding usage_counts compiled for the generic CPU."""
+    root = tmp_path_factory.mktemp("portable")
+    scratch = root / "scratch"
+    _python(KERNEL, NUMBA_CACHE_DIR=str(scratch), NUMBA_CPU_NAME="generic",
+            NUMBA_CPU_FEATURES="")
+    _python(f"""
+from osmap_cli import kernelcache
+from osmap_cli.kernelwarm import _generic
+staged = {str(scratch)!r} + "/" + kernelcache._subpath(kernelcache.package_dir("osmap_kernels"))
+added = kernelcache.merge_folder(staged, {str(root / "cache" / "osmap_kernels")!r}, _generic)
+kernelcache.write_manifest({str(root / "cache")!r}, ["osmap_kernels"], added)
+""")
+    return root / "cache"
+
+
+def _probe(root, cache, policy="auto"):
+    """A console-script-like process: prepare(), then the kernel; what it ran on."""
+    out = _python(f"""
+from osmap_cli import kernelcache, kernelwarm
+kernelcache.portable_root = lambda: {str(root)!r}
+kernelwarm.prepare()
+{KERNEL}
+target = usage_counts.targetctx.codegen().magic_tuple()
+print(kernelwarm.using_portable(), target[1] if target[1] != "generic" or not target[2] else "?",
+      sum(usage_counts.stats.cache_misses.values()))
+""", NUMBA_CACHE_DIR=str(cache), OSMAP_KERNELS=policy)
+    portable, cpu, compiled = out.split()
+    return portable == "True", cpu, int(compiled)  # cpu "?": generic name, this CPU's features
+
+
+def test_portable_kernels_serve_a_cold_cache_until_this_cpus_are_compiled(portable, tmp_path):
+    cache = tmp_path / "cache"
+    assert _probe(portable, cache) == (True, "generic", 0)  # seeded, loaded, nothing compiled
+    assert _probe(portable, cache, policy="host")[:2] == (False, _host_cpu())
+    # this CPU's kernels, as the background compile and `osmap warmup` make them
+    _python(f"""
+from osmap_cli import kernelcache, kernelwarm
+kernelcache.portable_root = lambda: {str(portable)!r}
+assert kernelwarm.warm_host() is True
+assert kernelwarm.warm_host() is False
+""", NUMBA_CACHE_DIR=str(cache))
+    assert _probe(portable, cache) == (False, _host_cpu(), 0)
+    assert _probe(portable, cache, policy="portable") == (False, _host_cpu(), 0)
+    # a cache made ready on another CPU is not taken for this one's
+    (marker,) = cache.rglob("osmap-host-*.ready")
+    marker.rename(marker.with_name(marker.name.rsplit("-", 1)[0] + "-01234567.ready"))
+    assert _probe(portable, cache) == (True, "generic", 0)
+
+
+def _host_cpu() -> str:
+    import llvmlite.binding as llvm
+
+    return llvm.get_host_cpu_name()
+
+
+def test_an_entry_for_another_cpu_is_not_a_cached_kernel(portable, tmp_path):
+    cache = tmp_path / "cache"
+    code = f"""
+from osmap_cli import kernelcache
+kernelcache.portable_root = lambda: {str(portable)!r}
+kernelcache.seed(kernelcache.load_manifest())
+from osmap_cli.synth import warm
+from osmap_kernels.coherence import usage_counts
+print(warm._cached(usage_counts))
+"""
+    assert _python(code, NUMBA_CACHE_DIR=str(cache)) == "False"  # only a generic entry
+    assert _python(code, NUMBA_CACHE_DIR=str(cache), NUMBA_CPU_NAME="generic",
+                   NUMBA_CPU_FEATURES="") == "True"
+
+
+def test_the_cache_folder_is_numbas(tmp_path):
+    code = """
+from osmap_cli import kernelcache
+from osmap_kernels import coherence
+print(kernelcache.cache_folder(kernelcache.package_dir("osmap_kernels"))
+      == coherence.usage_counts._cache.cache_path)
+"""
+    assert _python(code) == "True"
+    assert _python(code, NUMBA_CACHE_DIR=str(tmp_path)) == "True"
+
+
+def test_after_a_portable_run_this_cpus_compile_starts_in_the_background(monkeypatch, tmp_path):
+    from osmap_cli import kernelcache, kernelwarm
+
+    manifest = kernelcache.Manifest(digest="ab" * 32, packages=["osmap_kernels"])
+    monkeypatch.setattr(kernelcache, "load_manifest", lambda root=None: manifest)
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("NUMBA_CPU_NAME", "generic")
+    started = []
+    monkeypatch.setattr(subprocess, "Popen",
+                        lambda argv, **kw: started.append((argv, kw)))
+    monkeypatch.setitem(kernelwarm._state, "policy", "auto")
+    monkeypatch.setitem(kernelwarm._state, "portable", False)
+    kernelwarm.after_run([])
+    assert started == []  # a run on this CPU's kernels
+    monkeypatch.setitem(kernelwarm._state, "portable", True)
+    kernelwarm.after_run([])
+    (argv, kw), = started
+    assert argv[1:] == ["-m", "osmap_cli.kernelwarm", "background"]
+    assert kw["start_new_session"] and "NUMBA_CPU_NAME" not in kw["env"]
+    assert kw["env"]["OSMAP_KERNELS"] == "host"
+    folder = kernelcache.cache_folder(kernelcache.package_dir("osmap_kernels"))
+    with kernelcache.locked(folder, name=kernelwarm.COMPILE_LOCK):
+        kernelwarm.after_run([])  # one is running already
+    kernelcache.touch(kernelcache.host_marker(manifest, "failed"), "boom")
+    kernelwarm.after_run([])  # it failed: `osmap warmup` says why
+    monkeypatch.setitem(kernelwarm._state, "policy", "portable")
+    os.remove(kernelcache.host_marker(manifest, "failed"))
+    kernelwarm.after_run([])  # OSMAP_KERNELS=portable: never
+    assert len(started) == 1
+
+
+def test_quick_loads_load_the_same_kernels_without_compiling():
+    code = """
+import numpy as np
+from numba.core.caching import Cache
+from osmap_kernels.coherence import usage_counts
+from osmap_kernels.regions import copy_region_areas
+pos = np.random.default_rng(1).integers(0, 8, (6, 6, 2)).astype(np.float32)
+counts = usage_counts(pos, 8, 8)
+areas = copy_region_areas(pos, np.broadcast_to(np.eye(2, dtype=np.float32), (6, 6, 2, 2)).copy(),
+                          False)
+missed = sum(usage_counts.stats.cache_misses.values()) + sum(
+    copy_region_areas.stats.cache_misses.values())
+print(getattr(Cache.load_overload, "quick", False), missed, counts.sum(), areas.tobytes().hex())
+"""
+    quick = _python(code, OSMAP_QUICK_LOADS="1").split()
+    plain = _python(code, OSMAP_QUICK_LOADS="0").split()
+    assert quick[0] == "True" and plain[0] == "False"
+    assert quick[1:] == plain[1:] and quick[1] == "0"  # loaded from the cache, same results

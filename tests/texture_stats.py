@@ -151,3 +151,64 @@ def rim_z(original, output, free, draws=200):
     ref = [border_mean(np.roll(original, (rng.integers(h), rng.integers(w)), (0, 1)), free)
            for _ in range(draws)]
     return (border_mean(output, free) - np.mean(ref)) / np.std(ref)
+
+
+def _autocorrelation(gray: np.ndarray) -> np.ndarray:
+    """Normalised autocorrelation of a zero-mean gray image, r[dy + h, dx + w] (overlap-normalised,
+    no wrap)."""
+    x = gray - gray.mean()
+    h, w = x.shape
+    f = np.fft.rfft2(x, (2 * h, 2 * w))
+    num = np.fft.irfft2(np.abs(f) ** 2, (2 * h, 2 * w))
+    ones = np.fft.rfft2(np.ones((h, w)), (2 * h, 2 * w))
+    count = np.fft.irfft2(np.abs(ones) ** 2, (2 * h, 2 * w))
+    return np.fft.fftshift(num / np.maximum(np.rint(count), 1) / max(x.var(), 1e-12))
+
+
+def _correlation_near(r: np.ndarray, d) -> float:
+    """The largest correlation within a pixel of displacement d (dy, dx)."""
+    cy, cx = r.shape[0] // 2, r.shape[1] // 2
+    y, x = int(round(cy + d[0])), int(round(cx + d[1]))
+    window = r[max(y - 1, 0):y + 2, max(x - 1, 0):x + 2]
+    return float(window.max()) if window.size else float("nan")
+
+
+def lattice_vectors(exemplar: np.ndarray):
+    """[(dy, dx, r)] the exemplar's two strongest non-collinear autocorrelation peaks outside
+    the central lobe (within half its size), strongest first: its lattice, as a person would
+    read it off the autocorrelation."""
+    gray = exemplar.mean(axis=2)
+    r = _autocorrelation(gray)
+    h, w = gray.shape
+    yy, xx = np.mgrid[-h:h, -w:w]
+    radius = np.hypot(yy, xx)
+    lobe = next((k for k in range(2, min(h, w) // 2)
+                 if r[(radius >= k) & (radius < k + 1)].mean() < 0.1), 2)
+    padded = np.pad(r, 1, constant_values=-np.inf)
+    around = np.max([padded[1 + a:padded.shape[0] - 1 + a, 1 + b:padded.shape[1] - 1 + b]
+                     for a in (-1, 0, 1) for b in (-1, 0, 1)], axis=0)
+    peak = (r >= around) & (radius > lobe) & (np.abs(yy) <= h // 2) & (np.abs(xx) <= w // 2)
+    peak &= (yy > 0) | ((yy == 0) & (xx > 0))
+    found = sorted(((float(r[y, x]), y - h, x - w) for y, x in np.argwhere(peak)), reverse=True)
+    first = found[0]
+    for value, dy, dx in found[1:]:
+        if abs(first[1] * dx - first[2] * dy) > 0.35 * np.hypot(*first[1:]) * np.hypot(dy, dx):
+            return [(first[1], first[2], first[0]), (dy, dx, value)]
+    return [(first[1], first[2], first[0])]
+
+
+def regularity(exemplar: np.ndarray, output: np.ndarray):
+    """(short, long): how strongly the output correlates with itself at the exemplar's lattice
+    vectors, over the exemplar's own peak: at one period (short, the lower of the two vectors)
+    and at every multiple that fits in half the output (long, the mean): a lattice that drifts
+    or breaks between copies decays in long; 1 = as regular as the exemplar."""
+    r = _autocorrelation(output.mean(axis=2))
+    half = min(output.shape[:2]) / 2
+    short, long_ = [], []
+    for dy, dx, own in lattice_vectors(exemplar):
+        short.append(_correlation_near(r, (dy, dx)) / own)
+        k = 1
+        while np.hypot(k * dy, k * dx) <= half:
+            long_.append(_correlation_near(r, (k * dy, k * dx)) / own)
+            k += 1
+    return min(short), float(np.mean(long_))

@@ -117,8 +117,9 @@ def tuning_flags(options_cls, skip=()):
         for name, spec in reversed(tunables(options_cls).items()):
             if name in skip:
                 continue
-            if spec.kind is str:
-                kind, metavar = click.Choice(spec.choices), None
+            if spec.kind is str:  # free text when there are no choices (checked later)
+                kind, metavar = (click.Choice(spec.choices), None) if spec.choices \
+                    else (click.STRING, "TEXT")
             else:
                 kind = click.INT if spec.kind is int else click.FLOAT
                 metavar = "N" if spec.kind is int else "X"

@@ -79,6 +79,8 @@ def fill_options(function):
                      'pixel: float EXR, channels "u" (x) and "v" (y). With --out-dir: a name '
                      "template."),
         click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary line."),
+        click.option("--verbose", is_flag=True, help="The summary line also says what the "
+                     "image's analysis found: the lattice the fill keeps (--lattice)."),
         tuning_flags(SynthOptions, skip=OSMAP_ONLY),
     ]
     for decorate in reversed(decorators):
@@ -88,7 +90,8 @@ def fill_options(function):
 
 def plan_fill(mode: str, *, images, output, out_dir, name_template, jobs, fail_fast, json_lines,
               overwrite, scheduler, scheduler_file, threads, seed, preset, quality, bit_depth,
-              with_maps, uv_out, quiet, mask=None, border=0, exemplars=(), **tuning) -> int:
+              with_maps, uv_out, quiet, verbose=False, mask=None, border=0, exemplars=(),
+              **tuning) -> int:
     """Check every option, plan every output, run one FillJob per image; the exit code. The
     keywords are the click parameters of fill_options (the tuning flags land in `tuning`)."""
     from osmap_cli.materials import expand_path
@@ -134,7 +137,7 @@ def plan_fill(mode: str, *, images, output, out_dir, name_template, jobs, fail_f
             index=index, exemplar=image, output=main, options=options, preset=preset_name,
             preset_values=preset_values, bit_depth=bit_depth, uv_out=uv, withs=tuple(maps),
             replace=output is not None or overwrite, refused=refused,
-            progress=show_progress(quiet, jobs), quiet=quiet,
+            progress=show_progress(quiet, jobs), quiet=quiet, verbose=verbose,
             label=f"osmap {mode}" if len(plans) == 1 else os.path.basename(image),
             mode=mode, mask=image_mask, border=border, exemplars=image_exemplars))
     return run_batch(job_list, jobs, fail_fast, json_lines, quiet, cluster)

@@ -1,15 +1,18 @@
-"""`osmap info FILE`: print the provenance osmap stored in an output, and how to remake it."""
+"""`osmap info FILE`: read back the provenance osmap stored in an output (osmap_cli.provenance
+writes it), and the command line that makes it again."""
 
 from __future__ import annotations
 
 import json
+import os
+import shlex
 
 import click
 
 from osmap_cli.commands.common import CONTEXT_SETTINGS
 from osmap_cli.errors import OsmapError
 
-__all__ = ["info_command"]
+__all__ = ["info_command", "read_provenance", "reproduce_command"]
 
 INFO_EPILOG = """\b
 Examples:
@@ -41,8 +44,6 @@ def info_command(path: str, as_json: bool, command_only: bool) -> None:
     names the input files as they were named (no folders): run it where they
     are. A file without osmap metadata is an error (exit 1).
     """
-    from osmap_cli.provenance import read_provenance, reproduce_command
-
     meta = read_provenance(path)
     if not meta:
         raise OsmapError(f"{path}: no osmap provenance in this file")
@@ -73,3 +74,72 @@ def _is_json(text: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+def read_provenance(path: str) -> dict[str, str]:
+    """The osmap key/value pairs stored in an image, a NRRD volume or a carved mesh."""
+    if os.path.isdir(path):
+        raise OsmapError(f"{path}: is a directory (give one slice file)")
+    if not os.path.isfile(path):
+        raise OsmapError(f"{path}: no such file")
+    with open(path, "rb") as handle:
+        if handle.read(4) == b"NRRD":
+            from osmap_cli.solid.volumeio import read_nrrd_header
+
+            handle.seek(0)
+            return read_nrrd_header(handle, path)[1]
+    if path.lower().endswith((".glb", ".gltf", ".obj", ".mtl", ".ply")):
+        from osmap_cli.carving.meshio import read_mesh_provenance
+
+        return read_mesh_provenance(path)
+    if path.lower().endswith(".npy"):
+        raise OsmapError(f"{path}: .npy files cannot store metadata (no provenance)")
+    from osmap_cli.imageio import read_metadata
+
+    return read_metadata(path)
+
+
+def reproduce_command(meta: dict[str, str], path: str) -> str | None:
+    """The command line that writes `path` again (None when the metadata cannot tell)."""
+    command = meta.get("command")
+    args = shlex.split(meta.get("args", ""))
+    if command == "carve" and "args" in meta:
+        from osmap_cli.carving.job import reproduce
+
+        return reproduce(meta, path)
+    if command == "apply" and meta.get("uv") and meta.get("map"):
+        return shlex.join(["osmap", "apply", meta["uv"], meta["map"], "-o", path, *args])
+    if command not in ("synth", "solid", "inpaint", "tileable") or "args" not in meta:
+        return None
+    inputs = shlex.split(meta["inputs"]) if "inputs" in meta else [meta.get("exemplar", "")]
+    role = meta.get("role", "image")
+    output = path
+    stem, ext = os.path.splitext(path)
+    if command == "solid":
+        output, args = _volume_output(path, meta, args)
+    elif role.startswith("with:") and stem.endswith("_" + role[5:]):
+        output = stem[: -len(role[5:]) - 1] + ext
+    elif role == "uv":
+        output = stem + "_image" + meta.get("image_ext", ".png")
+        args += ["--uv-out", path]
+    return shlex.join(["osmap", command, *inputs, "-o", output, *args])
+
+
+def _volume_output(path: str, meta: dict[str, str], args: list[str]) -> tuple[str, list[str]]:
+    """(-o, flags) of `osmap solid` for one of its files: a slice names its folder, a preview
+    (a PNG that is neither a slice nor an atlas) is written beside a volume, a NRRD keeps its
+    encoding."""
+    ext = os.path.splitext(path)[1].lower()
+    if "slice" in meta:
+        folder = os.path.dirname(path) or "."
+        return folder, args + (["--format", "exr"] if ext == ".exr" else [])
+    if ext == ".png" and "atlas_grid" not in meta:
+        return os.path.splitext(path)[0] + "_volume.npy", args + ["--preview", path]
+    if ext == ".nrrd":
+        from osmap_cli.solid.volumeio import read_nrrd_header
+
+        with open(path, "rb") as handle:
+            encoding = read_nrrd_header(handle, path)[0].get("encoding", "raw")
+        if encoding != "raw":
+            args = args + ["--nrrd-encoding", encoding]
+    return path, args

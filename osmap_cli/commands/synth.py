@@ -209,6 +209,9 @@ Examples:
               "[default: the exemplar's own luminance, blurred and stretched to 0..1]")
 @click.option("-q", "--quiet", is_flag=True,
               help="No progress bar, no summary line, no warnings (errors are still shown).")
+@click.option("--verbose", is_flag=True,
+              help="The summary line also says what the exemplar's analysis found: the "
+              "lattice the output keeps (--lattice).")
 @tuning_flags(SynthOptions)
 def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str | None,
                   name_template: str | None, jobs: int, fail_fast: bool, json_lines: bool,
@@ -218,7 +221,7 @@ def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str |
                   orientation_field: str | None, scale_field: str | None, tileable: bool,
                   quality: str, method: str, bit_depth: str | None,
                   with_maps: tuple[str, ...], uv_out: str | None, also: tuple[str, ...],
-                  target_guide: str | None, guide: str | None, quiet: bool,
+                  target_guide: str | None, guide: str | None, quiet: bool, verbose: bool,
                   **tuning) -> int:
     # 1. preset and options (no image work yet)
     cluster = cluster_spec(scheduler, scheduler_file, threads, jobs)
@@ -234,6 +237,7 @@ def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str |
     if (orientation_field or scale_field) and method != "osmap":
         raise click.UsageError("--orientation-field and --scale-field need --method osmap")
     _check_also(also, with_maps, uv_out, orientation_field or scale_field, method)
+    _check_lattice(options.lattice, orientation_field or scale_field, method)
     _check_guides(guide, target_guide, also, method, exemplars)
 
     # 2. the inputs and where their outputs go
@@ -263,8 +267,8 @@ def synth_command(exemplars: tuple[str, ...], output: str | None, out_dir: str |
             orientation_field=orientation_field, scale_field=scale_field,
             guide=guide, target_guide=target_guide,
             also=extra[exemplar], replace=output is not None or overwrite, refused=refused,
-            progress=show_progress(quiet, jobs),
-            quiet=quiet, label="osmap synth" if len(plans) == 1 else os.path.basename(exemplar),
+            progress=show_progress(quiet, jobs), quiet=quiet, verbose=verbose,
+            label="osmap synth" if len(plans) == 1 else os.path.basename(exemplar),
         ))
     return run_batch(job_list, jobs, fail_fast, json_lines, quiet, cluster)
 
@@ -282,6 +286,18 @@ def _check_guides(guide, target_guide, also, method, exemplars) -> None:
     if guide and (len(exemplars) != 1 or exemplars[0] == "-"):
         raise click.UsageError("--guide belongs to one exemplar: give exactly one EXEMPLAR "
                                "(without --guide each exemplar's luminance is its guide)")
+
+
+def _check_lattice(lattice: str, fields, method: str) -> None:
+    """Lattice vectors given by hand need one orientation and scale over the output."""
+    if lattice in ("auto", "off"):
+        return
+    for given, flag in ((fields, "--orientation-field/--scale-field"),
+                        (method != "osmap", "--method paper")):
+        if given:
+            raise click.UsageError(f"--lattice {lattice} does not combine with {flag} (a "
+                                   "lattice needs one orientation and scale for the whole "
+                                   "output; auto finds none there)")
 
 
 def _check_also(also, with_maps, uv_out, fields, method) -> None:

@@ -13,7 +13,28 @@ from dataclasses import dataclass
 from osmap_cli.batch import Job
 from osmap_cli.errors import OsmapError
 
-__all__ = ["SolidJob"]
+__all__ = ["SolidJob", "solid_args"]
+
+
+def solid_args(options, preset: str) -> list[str]:
+    """Canonical `osmap solid` flags (no exemplar, no -o) that resolve to `options` again: the
+    tunables that differ from the built-in preset's table (all of them for another preset)."""
+    from osmap_cli.options import flag_args, number_text
+    from osmap_cli.presets import builtin_names, load_preset
+    from osmap_cli.solid.options import SolidOptions
+
+    defaults = SolidOptions()
+    args = ["--size", f"{options.width}x{options.height}x{options.depth}", "--seed",
+            str(options.seed), "--preset", preset]
+    if options.tileable:
+        args.append("--tileable")
+    if options.quality != defaults.quality:
+        args += ["--quality", options.quality]
+    if options.angles != defaults.angles:
+        args += ["--orientation", ",".join(number_text(a) for a in options.angles)]
+    baseline = (defaults.replace(**load_preset(preset, "solid"))
+                if preset in builtin_names("solid") else None)
+    return args + flag_args(options, baseline)
 
 
 @dataclass(frozen=True)
@@ -108,7 +129,7 @@ class SolidJob(Job):
 
         options = self.options
         names = list(self.files) if len(self.files) == 3 else [self.files[0]]
-        metadata = volume_metadata(options, self.preset, names)
+        metadata = volume_metadata(options, self.preset, names, solid_args(options, self.preset))
         if result.provenance is not None:
             metadata["structure"] = json.dumps(result.provenance, sort_keys=True)
         depth = 16 if max(im.bit_depth for im in images) >= 16 else 8

@@ -1,4 +1,4 @@
-"""`osmap surface`: fold-free quad grids on point-sampled surfaces with OS-Map (issue 5).
+"""`osmap surface`: fold-free quad grids on point-sampled surfaces with OS-Map.
 
 Modules, one job each:
 - shapes.py   built-in analytic surfaces (roll, torus, sphere, cylinder) and their parameters

@@ -1,6 +1,6 @@
 """Geodesic initialisation of an open map: the nodes start ordered along the surface.
 
-Why (issue 17): with x and y varying along u only, the roll's map is in effect a chain of columns
+Why: with x and y varying along u only, the roll's map is in effect a chain of columns
 on the spiral. From a random start, the large-radius phase of the schedule pulls that chain into
 a near-closed ring whose opening slides around the ring while sigma is large; where it happens to
 be when the radius shrinks is where the grid opens. When that is not the spiral's own gap, one

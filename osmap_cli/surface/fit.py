@@ -6,7 +6,7 @@ Two methods share everything (points, initialisation, steps, schedule, seed, map
 - "som":   Kohonen's SOM: cartesian xyz, isotropic Gaussian neighbourhood.
 Both search the winner over the whole map (scale 1: every point is represented once).
 
-Initialisation (issue 17): a map without wrapped axes starts from the surface's own unrolled
+Initialisation: a map without wrapped axes starts from the surface's own unrolled
 coordinates (embed.py, a landmark Isomap) and is refined with a small radius and learning rate;
 a wrapped map, or `init="random"`, starts from randomly drawn points with the paper's wide
 schedule. After each fit, folds.py checks the grid against the points (no ground truth); a
@@ -254,7 +254,7 @@ def fit_best(points: np.ndarray, cfg: FitConfig, restarts: int = 1, progress=Non
     truth), and while the best so far is folded train up to `fold_retries` more (the next derived
     seeds). Keeps the best: fold-free first, then the fewest fold signals, then the lowest
     topographic error on the points (ties: the first). With fold_retries < 0 nothing is checked
-    and the lowest topographic error wins, as before issue 17."""
+    and the lowest topographic error wins."""
     from dataclasses import replace
 
     from osmap_cli.surface.folds import fold_check

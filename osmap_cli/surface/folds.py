@@ -1,4 +1,4 @@
-"""Fold detection without ground truth (issue 17): is a fitted grid folded or bridging?
+"""Fold detection without ground truth: is a fitted grid folded or bridging?
 
 Only the grid and the input points are used, so it works on any point cloud. Three signals:
 - gap_edges: the fraction of grid edges (wrap edges included) with a point farther than TAU from

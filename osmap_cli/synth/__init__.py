@@ -9,7 +9,12 @@
 `synthesize` / `SynthResult`, so option validation and `--help` stay fast.
 """
 
+from typing import TYPE_CHECKING
+
 from osmap_cli.synth.options import SynthOptions
+
+if TYPE_CHECKING:  # loaded on first use by __getattr__ below
+    from osmap_cli.synth.pipeline import SynthResult, synthesize
 
 __all__ = ["SynthOptions", "SynthResult", "synthesize"]
 

@@ -29,6 +29,7 @@ from osmap_cli.synth.pipeline import (
     uniform_jacobian,
     valid_box,
 )
+from osmap_cli.synth.regular import atlas_phase, resolve_lattice, wrapped
 from osmap_cli.synth.render import render, render_settings
 from osmap_cli.texture.features import appearance_features, feature_variance
 from osmap_cli.texture.levels import level_count
@@ -201,12 +202,23 @@ def synthesize_several(exemplars, options: SynthOptions, progress=None) -> Sever
         inside = np.mean(np.sum(np.square(feat[~out], dtype=np.float64), axis=1))
         ratios.append(float(inside) / feature_variance([feat]))
     opts = opts.replace(seam=opts.seam * float(np.mean(ratios)))
+    # the first exemplar's lattice, each exemplar's copies in step with it
+    lattice = resolve_lattice(opts.lattice, exemplars[0])
+    out_lattice = None
+    if lattice is not None and opts.tileable:
+        out_lattice = wrapped(lattice, out_shape, jac, opts.max_copy or min(out_shape))
+        lattice = lattice if out_lattice is not None else None
+
+    def lattice_phase(level):
+        return atlas_phase(lattice, exemplars, atlas.origins, pyramid[level].shape[:2], level)
+
     loop = LevelLoop(pyramid, shapes, uniform_jacobian(jac), bounds, start,
-                     constraint=constraint)
+                     constraint=constraint, lattice=lattice, out_lattice=out_lattice,
+                     lattice_phase=lattice_phase)
     pos, jac_field, _ = run_levels(loop, opts, progress)
     pixels = render(atlas.pixels, pos, jac_field, *render_settings(opts))
     index, local = atlas.locate(pos)
-    return SeveralResult(pixels, pos, None, index, local)
+    return SeveralResult(pixels, pos, None, lattice, index, local)
 
 
 def continuing_regions(pos: np.ndarray, jac: np.ndarray, wrap: bool, tol: float):

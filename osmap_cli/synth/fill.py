@@ -34,6 +34,7 @@ from osmap_cli.synth.pipeline import (
     uniform_jacobian,
     valid_box,
 )
+from osmap_cli.synth.regular import BAND_LEFTOVER, atlas_phase, leftover, resolve_lattice
 from osmap_cli.synth.render import render
 from osmap_cli.texture.levels import level_count
 from osmap_cli.texture.pyramid import build_pyramid
@@ -197,9 +198,19 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
         # pre-fill, which blurs the features of the kept pixels around the hole
         return _paste(level_image, holes[level], render(pyramid[level], pos))
 
+    # the image's lattice (a hole: read from the kept pixels), kept by the fill
+    lattice = resolve_lattice(opts.lattice, image, None if source_free else ~free)
+    if lattice is not None and wrap and leftover(lattice, shape) > BAND_LEFTOVER:
+        lattice = None  # its wrap lines would not meet in step: the bands find their own way
+
+    def lattice_phase(level):
+        return atlas_phase(lattice, [source, *exemplars], atlas.origins,
+                           pyramid[level].shape[:2], level)
+
     loop = LevelLoop(pyramid, [h.shape for h in holes], uniform_jacobian(np.eye(2)), bounds,
                      start, constraint=constraint, rounds=1 if source_free else 2,
-                     restyle=restyle)
+                     restyle=restyle, lattice=lattice,
+                     lattice_phase=None if atlas is None else lattice_phase, pinned_phase=True)
     pos, jac_field, finest = run_levels(loop, opts, progress)
     forbidden = finest.forbidden
     if not source_free and forbidden[np.rint(pos[free]).astype(int)[:, 0],
@@ -209,7 +220,7 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
     if atlas is None:
         pixels = render_fill(lambda px, blend: render(px, pos, jac_field, wrap, blend), image,
                              free, source_free, opts.blend)
-        return SynthResult(pixels, pos)
+        return SynthResult(pixels, pos, lattice=lattice)
 
     def draw(px, blend):
         # the image's pixels (as render_fill passes them) in the atlas, then rendered
@@ -219,7 +230,7 @@ def fill(image: np.ndarray, free: np.ndarray, options: SynthOptions, *, source_f
 
     pixels = render_fill(draw, image, free, source_free, opts.blend)
     index, local = atlas.locate(pos)
-    return SeveralResult(pixels, pos, None, index - 1, local)  # -1: the image itself
+    return SeveralResult(pixels, pos, None, lattice, index - 1, local)  # -1: the image itself
 
 
 def _check_exemplars(image: np.ndarray, exemplars, source_free: bool) -> None:

@@ -5,7 +5,8 @@ its edge bands re-synthesized, plus its --with maps and --uv-out positions.
     -> stage (every output in one transaction) -> commit
 
 The outputs, formats and transaction are osmap_cli.synth.job.SynthJob's; what differs is the
-input (a mask or a border), the engine (osmap_cli.synth.fill) and the provenance.
+input (a mask or a border), the size (the image's), the engine (osmap_cli.synth.fill), how the
+--with maps are rendered and the provenance: the hooks of SynthJob's staging this job overrides.
 """
 
 from __future__ import annotations
@@ -17,12 +18,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from osmap_cli.errors import OsmapError
-from osmap_cli.imageio import output_depth
-from osmap_cli.synth.job import UV_DESCRIPTION, SynthJob
+from osmap_cli.synth.job import SynthJob, map_renderer, synth_args
 
-__all__ = ["MODES", "FillJob", "read_mask"]
+__all__ = ["MODES", "FillJob", "fill_args", "read_mask"]
 
 MODES = ("inpaint", "tileable")
+
+
+def fill_args(options, preset: str, preset_values: dict | None, bit_depth: int,
+              more: list[str]) -> list[str]:
+    """Canonical `osmap inpaint` / `osmap tileable` flags: synth_args' without --size and
+    --tileable (the image sets them), then MORE (--mask NAME, --border N)."""
+    args = synth_args(options, preset, preset_values, bit_depth)[2:]
+    return [a for a in args if a != "--tileable"] + list(more)
 
 
 @dataclass(frozen=True)
@@ -127,9 +135,6 @@ class FillJob(SynthJob):
         return dataclasses.replace(self, options=self.options.replace(
             width=w, height=h, tileable=self.mode == "tileable"))
 
-    def check(self, inputs) -> None:
-        SynthJob.check(self.sized(inputs), inputs)
-
     def compute(self, inputs):
         from osmap_cli.progress import ProgressBar
         from osmap_cli.synth.fill import fill
@@ -149,16 +154,8 @@ class FillJob(SynthJob):
                     self.mask if self.mask not in (None, "alpha") else self.exemplar)
                 raise OsmapError(f"{named}: {exc}") from None
 
-    def stage(self, outputs, inputs, result):
-        from osmap_cli.imageio import encode_image
-        from osmap_cli.materials import render_map
-        from osmap_cli.provenance import fill_args, image_metadata
-        from osmap_cli.synth.fill import render_fill
-
-        job = self.sized(inputs)
-        options, image = job.options, inputs.image
-        channels = image.pixels.shape[2]
-        fmt, depth = output_depth(self.output, self.bit_depth, channels, image.bit_depth)
+    def provenance(self, inputs, depth: int) -> tuple[list[str], dict, str]:
+        image = inputs.image
         if self.mode == "inpaint":
             given = os.path.basename(self.mask) if self.mask != "alpha" else "alpha"
             more, extra = ["--mask", given], {"mask": given}
@@ -172,37 +169,21 @@ class FillJob(SynthJob):
             band = FillOptions(border=self.border).band(image.pixels.shape[:2])
             more = ["--border", str(self.border)] if self.border else []
             extra = {"border": str(band)}
-        args = fill_args(options, self.preset, self.preset_values, depth, more)
+        return fill_args(self.options, self.preset, self.preset_values, depth, more), extra, \
+            self.mode
 
-        def meta(role, more_args=(), more_extra=None):
-            return image_metadata(options, self.preset, self.exemplar, image.pixels.shape,
-                                  args + list(more_args), role, {**extra, **(more_extra or {})},
-                                  command=self.mode)
+    def render_with(self, spec, mapped, inputs, result):
+        """A --with map filled as the image was: kept pixels as they are, the free ones drawn
+        through the fill's positions (the edge bands wrapping around for tileable)."""
+        from osmap_cli.materials import render_map
+        from osmap_cli.synth.fill import render_fill
 
-        def stage_image(path, pixels, bits, names, metadata):
-            outputs.stage(path, lambda temp: encode_image(temp, pixels, bits, names, metadata,
-                                                          name=path))
-
-        stage_image(self.output, result.pixels, depth, tuple(image.channel_names),
-                    meta("image"))
         source_free = self.mode == "tileable"
-        for spec, path, mapped in inputs.maps:
-            _, map_depth = output_depth(path, self.bit_depth, mapped.pixels.shape[2],
-                                        mapped.bit_depth)
+        identity = np.eye(2)
 
-            def draw(pixels, blend, mapped=mapped, spec=spec):
-                return render_map(dataclasses.replace(mapped, pixels=pixels), result.positions,
-                                  np.eye(2), spec.normal, spec.path, source_free, blend)
+        def draw(pixels, blend):
+            renderer = map_renderer(result.positions, identity, source_free, blend)
+            return render_map(dataclasses.replace(mapped, pixels=pixels), renderer, identity,
+                              spec.normal, spec.path)
 
-            pixels = render_fill(draw, mapped.pixels, inputs.free, source_free, options.blend)
-            source = os.path.basename(spec.path)
-            stage_image(path, pixels, map_depth, tuple(mapped.channel_names),
-                        meta(f"with:{spec.name}", ["--with", f"{spec.name}={source}"],
-                             {"source": source, "normal_map": str(spec.normal).lower()}))
-        if self.uv_out is not None:
-            uv = result.positions[..., ::-1]
-            ext = os.path.splitext(self.output)[1].lower()
-            stage_image(self.uv_out, uv, 32, ("u", "v"),
-                        meta("uv", (), {"uv_channels": UV_DESCRIPTION, "image_ext": ext}))
-        return job._summary(fmt, depth, channels, inputs)
-
+        return render_fill(draw, mapped.pixels, inputs.free, source_free, self.options.blend)

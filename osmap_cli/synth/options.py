@@ -48,6 +48,9 @@ class SynthOptions(Options):
                              "pixels, are broken up (0: off)", tunable=True)
     align: int = option(4, 0, 8, "copies move whole by up to this many pixels to match at their "
                         "borders (coarsest level; halved per finer level; 0: off)", tunable=True)
+    lattice: str = option("auto", help="regular textures keep their lattice: auto (read from "
+                          "the exemplar), off, or the period vectors DX,DY[:DX,DY] in exemplar "
+                          "pixels", tunable=True)
     blend: int = option(2, 0, 8, "seam blending radius when rendering, pixels (0: hard copies)",
                         tunable=True)
     guide_weight: float = option(1.0, 0.0, 100.0, "how strongly the output follows "
@@ -73,7 +76,15 @@ class SynthOptions(Options):
                               "(0: off)", tunable=True)
 
     def check_relations(self) -> None:
-        """The schedules run from max to min."""
+        """The schedules run from max to min; --lattice is auto, off or vectors."""
+        if self.lattice not in ("auto", "off"):
+            from osmap_cli.synth.lattice import parse_lattice
+
+            try:
+                parse_lattice(self.lattice)
+            except ValueError as exc:
+                raise OsmapError(f"--lattice {self.lattice}: {exc} (expected auto, off, DX,DY "
+                                 "or DX,DY:DX,DY)") from None
         if self.som_sigma_min > self.som_sigma_max:
             raise OsmapError(f"som_sigma_min {self.som_sigma_min} exceeds som_sigma_max "
                              f"{self.som_sigma_max}")

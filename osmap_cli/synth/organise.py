@@ -40,7 +40,7 @@ def component_orientation(jac: np.ndarray, anisotropy: float) -> Orientation:
 
 
 def organise(exemplar_shape, out_shape, jac, lo, hi, opts: SynthOptions, *, wrap: bool,
-             seed: int, progress=None, allowed=None) -> np.ndarray:
+             seed: int, allowed=None) -> np.ndarray:
     """float32 (H, W, 2) position field over the output grid `out_shape`; `allowed` (bool
     (h, w), optional): train on those exemplar positions only (an atlas of several)."""
     data = exemplar_positions(lo, hi)
@@ -57,5 +57,5 @@ def organise(exemplar_shape, out_shape, jac, lo, hi, opts: SynthOptions, *, wrap
     schedule = Schedule(alpha_max=opts.som_alpha_max, alpha_min=opts.som_alpha_min,
                         sigma_max=opts.som_sigma_max, sigma_min=opts.som_sigma_min)
     if steps:
-        som.train(data, steps, schedule=schedule, seed=seed + 1, progress=progress)
+        som.train(data, steps, schedule=schedule, seed=seed + 1)
     return som.grid_weights().astype(np.float32)

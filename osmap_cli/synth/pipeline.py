@@ -8,9 +8,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from osmap_cli.synth.lattice import Lattice
 from osmap_cli.synth.options import SynthOptions
 from osmap_cli.synth.organise import organise
 from osmap_cli.synth.refine import refine, upsample
+from osmap_cli.synth.regular import level_lattice, resolve_lattice, wrapped
 from osmap_cli.synth.render import render, render_settings
 from osmap_cli.texture.features import appearance_features
 from osmap_cli.texture.levels import level_count
@@ -30,6 +32,7 @@ class SynthResult:
     pixels: np.ndarray
     positions: np.ndarray
     jacobian: np.ndarray | None = None  # float32 (H, W, 2, 2) with control fields, else None
+    lattice: Lattice | None = None  # the lattice the output keeps (--lattice), or None
 
 
 @dataclass(frozen=True)
@@ -45,6 +48,11 @@ class LevelLoop:
     guides: per level (exemplar guide, output guide), or None (guided synthesis).
     rounds: refinements per level; round r > 0 computes its features from
     restyle(level, previous round's source image, pos) (a hole matched against its own fill).
+    lattice: the exemplar's lattice (osmap_cli.synth.lattice.Lattice, finest level) or None;
+    out_lattice: the output's when it differs (tileable: osmap_cli.synth.regular.wrapped);
+    lattice_phase(level) -> the level's exemplar phase map (an atlas;
+    osmap_cli.synth.regular.atlas_phase); pinned_phase: the output's lattice phase is 0
+    (pinned pixels at their own positions), else the field's.
     """
 
     pyramid: list
@@ -56,6 +64,10 @@ class LevelLoop:
     guides: list | None = None
     rounds: int = 1
     restyle: Callable | None = None
+    lattice: Lattice | None = None
+    out_lattice: Lattice | None = None
+    lattice_phase: Callable | None = None
+    pinned_phase: bool = False
 
 
 def run_levels(loop: LevelLoop, opts: SynthOptions, progress=None):
@@ -85,6 +97,16 @@ def run_levels(loop: LevelLoop, opts: SynthOptions, progress=None):
             if constraint is not None:
                 pos = constraint.pin(pos)
             sweeps = opts.sweeps
+        lattice = None
+        if loop.lattice is not None:
+            phases = None if loop.lattice_phase is None else loop.lattice_phase(level)
+            lattice = level_lattice(loop.lattice, 2 ** level, jac_field[0, 0], pos, lo, hi,
+                                    phases, pinned_phase=loop.pinned_phase,
+                                    output=loop.out_lattice)
+            if lattice is not None:
+                pos = lattice.snap(pos, lo, hi)
+                if constraint is not None:
+                    pos = constraint.pin(pos)
         for round_ in range(loop.rounds):
             if round_:
                 image = loop.restyle(level, image, pos)
@@ -92,7 +114,7 @@ def run_levels(loop: LevelLoop, opts: SynthOptions, progress=None):
             pos = refine(pos, feat, jac_field, lo, hi, sweeps, opts, wrap=opts.tileable,
                          seed=opts.seed, salt=level + 100 * round_, level_scale=2 ** level,
                          coarsest_scale=2 ** (levels - 1), progress=advance,
-                         constraint=constraint,
+                         constraint=constraint, lattice=lattice,
                          guides=None if loop.guides is None else loop.guides[level])
     return pos, jac_field, constraint
 
@@ -145,6 +167,7 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
             raise ValueError(f"guide is {guide.shape[1]}x{guide.shape[0]}, the exemplar "
                              f"{exemplar.shape[1]}x{exemplar.shape[0]}: they must match")
         opts = opts.replace(coarse_sweeps=opts.coarse_sweeps * GUIDED_COARSE_FACTOR)
+    lattice = _lattice(opts, exemplar, fields is not None)
     if opts.method == "paper":
         from osmap_cli.synth.paper import synthesize_paper
         pos = synthesize_paper(exemplar.shape[:2], opts, progress=progress)
@@ -182,7 +205,25 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
                           guide_levels(target_guide, out_shape, levels)))
     pyramid = build_pyramid(exemplar, levels)
     shapes = level_shapes(out_shape, levels)
+    out_lattice = None
+    if lattice is not None and opts.tileable:
+        out_lattice = wrapped(lattice, out_shape, jac, opts.max_copy or min(out_shape))
+        lattice = lattice if out_lattice is not None else None
     pos, jac_field, _ = run_levels(LevelLoop(pyramid, shapes, jacobian_field, bounds, start,
-                                             guides=guides), opts, progress)
+                                             guides=guides, lattice=lattice,
+                                             out_lattice=out_lattice), opts, progress)
     pixels = render(exemplar, pos, jac_field, *render_settings(opts))
-    return SynthResult(pixels, pos, None if fields is None else jac_field)
+    return SynthResult(pixels, pos, None if fields is None else jac_field, lattice)
+
+
+def _lattice(opts: SynthOptions, exemplar: np.ndarray, fields: bool) -> Lattice | None:
+    """The lattice `opts.lattice` asks for; vectors given by hand need what a lattice needs
+    (method osmap, no control fields), auto finds none without it."""
+    given = opts.lattice not in ("auto", "off")
+    if opts.method != "osmap" or fields:
+        if given:
+            what = "--method paper" if opts.method != "osmap" else "control fields"
+            raise ValueError(f"--lattice {opts.lattice} does not combine with {what} (a "
+                             "lattice needs one orientation and scale for the whole output)")
+        return None
+    return resolve_lattice(opts.lattice, exemplar)

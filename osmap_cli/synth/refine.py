@@ -12,6 +12,7 @@ from osmap_cli.texture.occupancy import occupancy
 from osmap_cli.texture.references import SYNTH_REFERENCES as MAX_KNN_REFERENCES
 from osmap_cli.texture.references import similar_positions
 from osmap_kernels.coherence import RefineParams, refine_pass, usage_counts
+from osmap_kernels.lattice import NO_LATTICE
 from osmap_kernels.regions import AlignParams, align_regions, copy_region_areas
 
 # Whole-copy shifts are judged on the 3x3 neighbourhoods across a copy's border: as good as the
@@ -29,14 +30,18 @@ _NO_GUIDE = np.zeros((1, 1), np.float32)
 
 def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, sweeps: int,
            opts: SynthOptions, *, wrap: bool, seed: int, salt: int, level_scale: int = 1,
-           coarsest_scale: int = 1, progress=None, constraint=None, guides=None) -> np.ndarray:
+           coarsest_scale: int = 1, progress=None, constraint=None, guides=None,
+           lattice=None) -> np.ndarray:
     """`sweeps` red-black coherence sweeps over pos (H, W, 2); returns the new field.
 
     `constraint` (osmap_cli.synth.constraints.LevelConstraint, optional) pins some pixels to
     known positions and forbids some exemplar positions (inpainting, tileable photos).
     `guides` (optional): this level's (exemplar guide float32 (h, w), output guide float32
     (H, W)); each candidate then costs opts.guide_weight * (guide difference)^2 more, in units of
-    a whole window's feature variance (osmap_cli.synth.guide)."""
+    a whole window's feature variance (osmap_cli.synth.guide).
+    `lattice` (osmap_cli.synth.regular.LevelLattice, optional): every candidate is snapped to a
+    position consistent with the lattice, and whole copies move only along it (pos should be
+    consistent already: LevelLattice.snap)."""
     # C order whatever made pos (upsample's arithmetic keeps a strided layout): the kernels then
     # compile, load and run for one array layout only
     pos = np.ascontiguousarray(pos, np.float32)
@@ -70,14 +75,19 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
                 area = copy_region_areas(pos if constraint is None else constraint.unlinked(pos),
                                          jac_field, wrap)
             out = pos.copy()
-            refine_pass(pos, out, feat, jac_field, knn, occ, area, gex, gout, params)
+            if lattice is None:
+                refine_pass(pos, out, feat, jac_field, knn, occ, area, gex, gout, params)
+            else:
+                refine_pass(pos, out, feat, jac_field, knn, occ, area, gex, gout, params,
+                            lattice.params, lattice.phase_map)
             pos = out if constraint is None else constraint.pin(out)
         if opts.align > 0 and sweep < sweeps - 1:
             # the last sweep settles the borders of the copies' final placement
             pos = align_regions(pos, feat, jac_field, AlignParams(
                 radius=ALIGN_RADIUS, wrap=wrap, lo=np.asarray(lo, np.float64),
                 hi=np.asarray(hi, np.float64), seam=seam, max_area=float(max_area),
-                reach=align_reach(opts.align, level_scale, coarsest_scale)))
+                reach=align_reach(opts.align, level_scale, coarsest_scale),
+                lattice=NO_LATTICE if lattice is None else lattice.params))
             if constraint is not None:
                 pos = constraint.pin(pos)
         if progress is not None:

@@ -1,12 +1,15 @@
 """Compiled kernels for `osmap synth`: is Numba's cache ready, and if not, fill it fast.
 
 Numba compiles a kernel on its first call and caches the machine code (next to the kernel
-modules, or under NUMBA_CACHE_DIR); every later run loads it. Compiling is single-threaded, so on
+modules, or under NUMBA_CACHE_DIR) per signature and target CPU; every later run loads it. An
+installed osmap starts from its portable cache (osmap_cli.kernelwarm); this module covers the
+rest (a development tree, a numba other than the build's). Compiling is single-threaded, so on
 a cold cache `ensure_compiled` splits the kernels a run uses into two groups of about equal
 compile time and compiles one in a child process (`python -m osmap_cli.synth.warm GROUP`) while
 this process compiles the other, each by a tiny run that calls the kernels with the argument
-types a real run uses; it announces this with one line. A file lock
-in the cache folder makes concurrent first runs (-j N, several shells) compile once.
+types a real run uses; it announces this with one line. A kernel counts as cached only with an
+entry for the CPU this process compiles for (an entry of another CPU is never loaded). A file
+lock in the cache folder makes concurrent first runs (-j N, several shells) compile once.
 
 Only compiles change; the kernels and their results do not.
 """
@@ -16,14 +19,9 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import time
 
-# Measured CPU seconds to compile each group from an empty cache (2-core machine, Numba 0.68;
-# refine with the kernels it shares with organise cached, as in a first run): the
-# announcement's estimate.
-# The refine group grew from 11.5 s with the written-out candidate costs of _refine_rows (issue
-# 14's large-output work) and came back to 13.2 s at load 0.9 once _total_cost and _gather were
-# called rather than inlined (BENCHMARKS.md, "Compile").
+# CPU seconds to compile each group from an empty cache (BENCHMARKS.md, "Compile"; refine with
+# the kernels it shares with organise cached, as in a first run): the announcement's estimate.
 GROUP_SECONDS = {"organise": 11.0, "refine": 13.0}
 ANNOUNCEMENT = "osmap: compiling kernels, first run only (about {seconds} s)"
 
@@ -46,20 +44,20 @@ def _dispatchers(group: str) -> list:
 
 
 def _cached(dispatcher, accept=None) -> bool:
-    """Whether Numba's cache holds machine code of this kernel's current source (any signature,
-    or one that `accept` accepts): its index file exists and was written for this source (the
-    index's stamp)."""
+    """Whether Numba's cache holds machine code of this kernel's current source for the CPU
+    this process compiles for (any signature, or one that `accept` accepts): its index file
+    exists, was written for this source (the index's stamp) and has an entry whose target is
+    this process's (the key's second part: triple, CPU name, features)."""
     cache = getattr(dispatcher, "_cache", None)
     impl = getattr(cache, "_cache_file", None)
     if impl is None:
         return True  # caching off (e.g. NUMBA_DISABLE_JIT): nothing to warm
     try:
         index = impl._load_index()
+        target = dispatcher.targetctx.codegen().magic_tuple()
     except Exception:  # noqa: BLE001 - an unreadable index is a cold one
         return False
-    if accept is None:
-        return bool(index)
-    return any(accept(key[0]) for key in index)
+    return any(key[1] == target and (accept is None or accept(key[0])) for key in index)
 
 
 def cold_groups() -> list[str]:
@@ -86,8 +84,9 @@ def ensure_compiled(announce=None) -> bool:
     """Compile the synth kernels now if the cache lacks them (in parallel child processes);
     `announce(line)` is told first. Returns True if anything was compiled. Never fails: if the
     children cannot run, the kernels compile on first use as before."""
-    if os.environ.get("NUMBA_DISABLE_JIT") == "1" or not cold_groups():
-        return False
+    if (os.environ.get("NUMBA_DISABLE_JIT") == "1" or os.environ.get("OSMAP_WARM_PLAN")
+            or not cold_groups()):
+        return False  # (OSMAP_WARM_PLAN: a run of osmap_cli.kernelwarm's plan compiles itself)
     lock = _lock_path()
     handle = None
     try:
@@ -175,5 +174,4 @@ def compile_group(group: str) -> None:
 
 
 if __name__ == "__main__":
-    started = time.monotonic()
     compile_group(sys.argv[1])

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from osmap_kernels.coherence import knn_table
+from osmap_kernels.coherence import KnnParams, knn_table
 
 # positions within this many pixels of the pixel itself are not "similar positions"
 EXCLUDE = 2
@@ -27,5 +27,5 @@ def similar_positions(feat: np.ndarray, lo, hi, k: int, max_references: int) -> 
     (the grid's stride grows with the box's area)."""
     area = (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1)
     stride = max(1, math.ceil(math.sqrt(area / max_references)))
-    return knn_table(feat, int(lo[0]), int(hi[0]), int(lo[1]), int(hi[1]), max(k, 1), stride,
-                     EXCLUDE)
+    return knn_table(feat, KnnParams((int(lo[0]), int(lo[1])), (int(hi[0]), int(hi[1])),
+                                     max(k, 1), stride, EXCLUDE))

@@ -1,0 +1,146 @@
+"""Regular textures: does the output keep the exemplar's lattice? The figures of docs/regular.md.
+
+For the regular development exemplars (../shared/exemplars/small/, 128 px) and the shipped
+brick and weave samples, 256x256 at seed 1 (the quality section's settings), with
+`--lattice off` (copies placed freely, as before the lattice existed: the same bytes) and with
+the default `--lattice auto`. Each output is scored by the independent meters in their own venv:
+../shared/tools/regularity.py (short, long: the output's autocorrelation at the exemplar's
+lattice vectors and their multiples over the exemplar's own peak) and texmetrics.py (coh_mean,
+coh_p95, copy_side); the peers' outputs (../shared/design/peers/) by the same meters.
+
+    python bench/regularity.py [--names a,b] [--seeds 1] [--keep DIR] [--sheet PATH]
+
+--sheet writes a contact sheet of the first seed: per row the exemplar (enlarged to 256), the
+output without the lattice, with it, and the peer whose output keeps the lattice best (long).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+from common import (  # noqa: E402
+    PEERS_DIR,
+    SAMPLES_DIR,
+    SHARED_DIR,
+    SMALL_EXEMPLARS,
+    TEXMETRICS,
+    TEXMETRICS_PY,
+    measure_parser,
+    measurement_folder,
+)
+
+from osmap_cli.imageio import read_image, write_image  # noqa: E402
+from osmap_cli.synth import SynthOptions, synthesize  # noqa: E402
+from osmap_cli.texture.pyramid import resize  # noqa: E402
+
+REGULAR = ("bricks_dark_red", "basket_weave_diagonal", "knit_rope_mesh", "text_newsprint",
+           "wood_planks_horizontal")
+SAMPLES = ("brick", "weave")
+PEERS = ("quilting", "opara_patch", "resynth", "embark")
+SIDE, GAP = 256, 6
+
+
+def exemplar_path(name: str) -> Path:
+    return SAMPLES_DIR / f"{name}.png" if name in SAMPLES else SMALL_EXEMPLARS / f"{name}.png"
+
+
+def score(exemplar: Path, image: Path) -> dict:
+    """The regularity meter's short / long and texmetrics' coherence and copy figures."""
+    reg = json.loads(subprocess.run(
+        [str(TEXMETRICS_PY), str(SHARED_DIR / "tools" / "regularity.py"), str(exemplar),
+         str(image), "--json"], capture_output=True, text=True, check=True).stdout)
+    tex = json.loads(subprocess.run(
+        [str(TEXMETRICS_PY), str(TEXMETRICS), str(exemplar), str(image), "--json"],
+        capture_output=True, text=True, check=True).stdout)["2d"]
+    return {"short": reg.get("short"), "long": reg.get("long"),
+            **{k: tex[k] for k in ("coh_mean", "coh_p95", "copy_side")}}
+
+
+def measure(name: str, seed: int, folder: Path) -> dict:
+    """Both syntheses of one exemplar at one seed, scored, with the best peer's figures."""
+    source = exemplar_path(name)
+    exemplar = read_image(source).pixels
+    images, lattice = {}, None
+    for variant in ("off", "auto"):
+        result = synthesize(exemplar, SynthOptions(width=SIDE, height=SIDE, seed=seed,
+                                                   lattice=variant))
+        path = folder / f"{name}_{seed}_{variant}.png"
+        write_image(str(path), result.pixels, 8)
+        images[variant] = path
+        lattice = result.lattice if variant == "auto" else lattice
+    peers = {p: PEERS_DIR / p / f"{name}.png" for p in PEERS
+             if (PEERS_DIR / p / f"{name}.png").exists()}
+    jobs = {**images, **peers}
+    with ThreadPoolExecutor(2) as pool:  # the meters run in their own processes
+        scores = dict(zip(jobs, pool.map(lambda path: score(source, path), jobs.values())))
+    best = max(peers, key=lambda p: scores[p]["long"] or 0.0) if peers else None
+    return {"lattice": lattice, "scores": scores, "best": best, "images": jobs}
+
+
+def fmt(row: dict) -> str:
+    return (f"{row['short']:.2f} / {row['long']:.2f} | {row['coh_mean']:.2f} "
+            f"| {row['coh_p95']:.2f} | {row['copy_side']:.0f}")
+
+
+def main() -> None:
+    parser = measure_parser(__doc__, seeds="1")
+    parser.add_argument("--names", default=",".join(REGULAR + SAMPLES))
+    args = parser.parse_args()
+    seeds = [int(s) for s in args.seeds.split(",")]
+    rows = []
+    with measurement_folder(args.keep) as folder:
+        print("| exemplar | seed | lattice found | without: short / long | coh_mean | coh_p95 "
+              "| copy_side | with: short / long | coh_mean | coh_p95 | copy_side "
+              "| best peer: short / long | coh_mean |")
+        print("| --- " * 13 + "|")
+        for name in args.names.split(","):
+            for seed in seeds:
+                m = measure(name, seed, folder)
+                s = m["scores"]
+                lattice = m["lattice"]
+                found = ("none" if lattice is None else
+                         ":".join(f"{v[1]:.1f},{v[0]:.1f}" for v in lattice.vectors))
+                peer = (f"{m['best']} {s[m['best']]['short']:.2f} / {s[m['best']]['long']:.2f} "
+                        f"| {s[m['best']]['coh_mean']:.2f}" if m["best"] else "– | –")
+                print(f"| {name} | {seed} | {found} | {fmt(s['off'])} | {fmt(s['auto'])} "
+                      f"| {peer} |", flush=True)
+                if seed == seeds[0]:
+                    rows.append([exemplar_path(name), m["images"]["off"], m["images"]["auto"],
+                                 m["images"].get(m["best"])])
+    if args.sheet:
+        write_image(args.sheet, sheet(rows), 8)
+
+
+def _cell(path: Path | None) -> np.ndarray:
+    """An image as a SIDE x SIDE RGB tile (smaller ones enlarged, gray made RGB; white if
+    missing)."""
+    if path is None:
+        return np.ones((SIDE, SIDE, 3), np.float32)
+    image = read_image(path).pixels
+    image = image[..., :3] if image.shape[2] >= 3 else np.repeat(image[..., :1], 3, axis=2)
+    if image.shape[:2] != (SIDE, SIDE):
+        image = resize(np.ascontiguousarray(image), SIDE, SIDE)
+    return np.clip(image, 0, 1)
+
+
+def sheet(rows) -> np.ndarray:
+    """Rows of (exemplar, without, with, best peer) on white, GAP px apart."""
+    out = np.ones((len(rows) * (SIDE + GAP) - GAP, 4 * (SIDE + GAP) - GAP, 3), np.float32)
+    for r, row in enumerate(rows):
+        for c, path in enumerate(row):
+            y, x = r * (SIDE + GAP), c * (SIDE + GAP)
+            out[y:y + SIDE, x:x + SIDE] = _cell(path)
+    return out
+
+
+if __name__ == "__main__":
+    main()
