@@ -76,6 +76,15 @@ def measure(ex_path: Path, vol_path: Path, exemplar, voxels) -> dict:
             "profile_detail": prof}
 
 
+def _sample(name: str, side: int) -> np.ndarray:
+    """A shipped sample (`samples/gravel`) at `side` px, resized like the development ones."""
+    from osmap_cli.imageio import read_image
+    from osmap_cli.texture.pyramid import resize
+
+    image = read_image(REPO / f"{name}.png").pixels
+    return image if image.shape[0] == side else resize(image, side, side)
+
+
 def cut_picture(voxels, exemplar):
     """The preview (cube + middle slices) with an oblique (1, 1, 1) cut and the exemplar
     beside it, enlarged like the slices."""
@@ -113,6 +122,11 @@ def run(names, sides, methods, sheet=None, seed=1, changes=None, log=print):
                                  for n in WOOD_SET]
                     ex_side = exemplars[0].shape[0]
                     ex_path = REPO / "samples" / "wood_side.png"
+                elif name.startswith("samples/"):
+                    exemplars = [_sample(name, side)]
+                    ex_side = side
+                    ex_path = folder / f"{Path(name).name}_{side}.png"
+                    write_image(ex_path, exemplars[0], 8)
                 else:
                     exemplars = [_exemplar(name, side)]
                     ex_side = side
