@@ -135,7 +135,7 @@ def run(names, sides, methods, sheet=None, seed=1, changes=None, log=print):
                 for method in methods:
                     voxels, seconds, structure_s, report = synthesize(
                         exemplars, side, method, seed, changes if method == "structure" else None)
-                    vol_path = folder / f"{name}_{side}_{method}.npy"
+                    vol_path = folder / f"{Path(name).name}_{side}_{method}.npy"
                     np.save(vol_path, voxels)
                     figures = measure(ex_path, vol_path, exemplars[-1 if name == "wood_set"
                                                                    else 0], voxels)
