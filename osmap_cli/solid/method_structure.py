@@ -7,7 +7,8 @@ simulation, layers as the bands of a displaced planar or cylindrical field, phas
 truncated Gaussian field), then the Kopf et al. optimisation fills in the appearance with the
 structure as guide channels of every slice window, starting from the OS-Map's layout of the
 coarsest volume; finally each phase's colours, and each particle's mean colour, are matched to
-the exemplar's. An exemplar with none of these structures is made by method osmap.
+the exemplar's, and the whole volume's colours moved `final_histogram` of the way to the
+exemplar's distribution. An exemplar with none of these structures is made by method osmap.
 """
 
 from __future__ import annotations
@@ -16,12 +17,15 @@ import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from osmap_cli.solid import method_osmap
 from osmap_cli.solid.core import SolidResult, SolidTask
 from osmap_cli.solid.layout import Layout
 from osmap_cli.solid.optimise import Optimisation, quality_scaled
 from osmap_cli.solid.structure.fill import Fill, fill
 from osmap_cli.solid.structure.method import build_structure, finish, plan
+from osmap_cli.texture.histogram import match_quantiles
 
 if TYPE_CHECKING:
     from osmap_cli.solid.options import SolidOptions
@@ -35,6 +39,7 @@ class Options:
     structure: str
     phases: int
     fill: Fill
+    final_histogram: float  # how far the final colours move to the exemplar's distribution
     fallback: method_osmap.Options
 
     @classmethod
@@ -52,6 +57,7 @@ class Options:
                               sigma_max=opts.som_sigma_max, anisotropy=opts.som_anisotropy),
                 clip=opts.guide_clip, guide_weight=opts.guide_weight,
                 phase_match=opts.phase_match),
+            final_histogram=opts.final_histogram,
             fallback=method_osmap.Options.from_solid(opts))
 
 
@@ -68,6 +74,10 @@ def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
     voxels, source = fill(task, found.ex_labels, found.ex_identity, built.labels,
                           built.identity, options.fill, progress)
     voxels = finish(voxels, found, built, options.fill.phase_match, task.tileable)
+    # the per-phase matching moves the low-pass only; this one gives back the exemplar's
+    # extreme colours that the optimisation's averaging loses
+    pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])
+    voxels = match_quantiles(voxels, pixels, options.final_histogram)
     seconds = time.perf_counter() - started
     report = (*found.report(), f"structure step {structure_seconds:.1f} s of "
               f"{seconds:.1f} s (analysis and model {found.seconds:.1f} s)")

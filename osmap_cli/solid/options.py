@@ -147,8 +147,9 @@ class SolidOptions(Options):
     sharpen_steps: int = option(0, 0, 20, "with sharpen_bandwidth: mean-shift steps from the "
                                "weighted mean (Gaussian kernel) instead of the densest "
                                "proposal's cluster; 0: densest", tunable=True)
-    final_histogram: float = option(0.75, 0.0, 1.0, "method osmap: how far the final colours are "
-                                   "moved to the exemplar's per-channel distribution", tunable=True)
+    final_histogram: float = option(0.75, 0.0, 1.0, "methods osmap and structure: how far the "
+                                   "final colours are moved to the exemplar's per-channel "
+                                   "distribution", tunable=True)
 
     @property
     def shape(self) -> tuple[int, int, int]:
