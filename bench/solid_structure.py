@@ -7,7 +7,10 @@ sheet shows each volume's preview cube, its three middle slices and an oblique c
     python bench/solid_structure.py [--sides 64,128] [--methods structure,osmap,kopf,legacy]
         [--names terrazzo_granite,...] [--sheet docs/solid_structure_64.jpg] [--json out.json]
 
-Prints a Markdown table (one row per volume) and the summary against the acceptance bars.
+Names are development exemplars (../shared/exemplars/small), shipped samples as `samples/NAME`
+(resized to the side like the others) or `wood_set` (samples/wood_end, _side, _top as
+--x/--y/--z, at their 128 px). Prints a Markdown table (one row per volume) and the summary
+against the acceptance bars.
 Needs the meters' venv (TEXMETRICS_PYTHON, as bench_solid.py).
 """
 
