@@ -264,7 +264,10 @@ def place_spheres(shape, radii, exclusion, attempts, seed, wrap):
     n = radii.shape[0]
     centres = np.zeros((n, 3))
     rmax = radii.max()
-    cell = max(2.0 * exclusion * np.median(radii), 1.0)
+    # cells of at least a quarter of the largest reach: a wide size range (specks beside
+    # stones) would otherwise make the largest spheres search thousands of tiny cells; the
+    # search covers every cell within reach whatever their size, so the result is the same
+    cell = max(2.0 * exclusion * np.median(radii), 0.5 * exclusion * rmax, 1.0)
     dims, sizes, heads, nxt = _grid(centres, shape, cell)
     smin = sizes.min()
     buf = np.empty(dims[0] * dims[1] * dims[2] + 1, np.int64)

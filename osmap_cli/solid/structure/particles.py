@@ -28,6 +28,7 @@ from osmap_cli.solid.structure.slices import DIAGONALS, axis_slices, oblique_sli
 from osmap_kernels.structure import place_spheres, render_particles
 
 PLANES = 6  # random cutting planes per particle
+MIN_VOXELS = 64  # voxels per particle at the least (a 4-voxel cube)
 BUMPS = 6  # random cosine bumps on the radius
 PLACE_ATTEMPTS = 24
 FIT_ROUNDS = 6
@@ -129,7 +130,10 @@ def build(shape, params: ParticleParams, sources: ParticleSources, seed: int,
     working resolution): lengths shrink by it, the number per voxel grows by its cube."""
     rng = np.random.default_rng(seed)
     volume = float(np.prod(shape))
-    n = max(1, int(round(params.density * factor ** 3 * volume)))
+    # at most one particle per MIN_VOXELS voxels: a fit chasing a degenerate target (a few
+    # large profiles among many specks) cannot ask for more particles than voxels
+    n = max(1, min(int(round(params.density * factor ** 3 * volume)),
+                   int(volume // MIN_VOXELS)))
     d = sources.diameters / factor
     weights = 1.0 / d
     pick = rng.choice(len(d), n, p=weights / weights.sum())
