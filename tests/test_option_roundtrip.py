@@ -36,6 +36,9 @@ NOT_OPTIONS = {
 # file name and not round-tripped by any test yet
 NOT_OPTIONS |= {"bit_depth", "normal", "nrrd_encoding", "preset", "with_maps", "uv_out",
                 "also", "guide", "target_guide", "orientation_field", "scale_field"}
+# osmap solid --analyse makes no volume: it prints the analysis and writes the segmentation
+# (tests/test_solid_structure.py)
+NOT_OPTIONS |= {"analyse"}
 # tuning flags osmap inpaint / tileable take but do not use (no guided fills): not recorded
 FILL_IGNORES = ("guide_weight",)
 # free-text options (no choices): a valid value other than the default, given here so that a new
