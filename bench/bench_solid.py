@@ -1,10 +1,11 @@
-"""Solid benchmark: timings of `synthesize_solid` (64^3 and 128^3 from a 128 px exemplar) and
-the quality table from texmetrics.py and solidlook.py on the solid development exemplars, for
-the default method (osmap), `--method kopf` and the previous default (`--method legacy`, the
-same as `--preset legacy`) side by side.
+"""Solid benchmark: timings of `synthesize_solid` (64^3 and 128^3 from 128 px exemplars, the
+structure step's own seconds), the quality table of every method on the solid development
+exemplars (bench/solid_structure.py: the independent meters and the profile meter, with contact
+sheets docs/solid_methods_64.jpg and _128.jpg), the wood set's rings and spacing, and the
+unseen-material reference.
 
 `run(quick=False) -> str` returns the Markdown section "## Solid" (bench/run.py includes it);
-`python bench/bench_solid.py --timing` prints only its timing table (about two minutes).
+`python bench/bench_solid.py --timing` prints only its timing table.
 Exemplars come from ../shared/exemplars/small (never copied into the repository); 64 px
 exemplars are those downscaled by OpenImageIO. Quality runs texmetrics.py in its own venv.
 """
@@ -23,15 +24,14 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
-SHARED = REPO.parent / "shared"
+# ../shared beside the checkout (a worktree one level deeper finds it too)
+SHARED = next((p / "shared" for p in REPO.parents if (p / "shared" / "exemplars").is_dir()),
+              REPO.parent / "shared")
 EXEMPLARS = SHARED / "exemplars" / "small"
 TEXMETRICS = SHARED / "tools" / "texmetrics.py"
 SOLIDLOOK = SHARED / "tools" / "solidlook.py"
-METHODS = ("osmap", "kopf", "legacy")
-# quality-table rows: the methods, and the default's settings before session 8 (preset muted)
-VARIANTS = (("osmap", "osmap", ()), ("muted", "osmap", (("position_weight", 3.0),
-                                                       ("final_histogram", 0.5))),
-            ("kopf", "kopf", ()), ("legacy", "legacy", ()))
+METHODS = ("structure", "osmap", "kopf", "legacy")
+TIMED = ("structure", "osmap", "kopf")
 TEXMETRICS_PY = Path(os.environ.get("TEXMETRICS_PYTHON", "/tmp/texmetrics-venv/bin/python"))
 NAMES = ("terrazzo_granite", "marble_swirl_green", "wood_planks_horizontal",
          "gravel_green_stones")
@@ -43,52 +43,6 @@ def _exemplar(name: str, side: int) -> np.ndarray:
 
     image = read_image(EXEMPLARS / f"{name}.png").pixels
     return image if image.shape[0] == side else resize(image, side, side)
-
-
-def _time(exemplar, side: int, runs: int, seed: int = 1, method: str = "osmap", changes=()):
-    from osmap_cli.solid import SolidOptions, synthesize_solid
-
-    options = SolidOptions(width=side, height=side, depth=side, seed=seed,
-                           method=method).replace(**dict(changes))
-    walls, cpus = [], []
-    for _ in range(runs):
-        wall, cpu = time.perf_counter(), time.process_time()
-        result = synthesize_solid([exemplar], options)
-        walls.append(time.perf_counter() - wall)
-        cpus.append(time.process_time() - cpu)
-    return walls, cpus, result
-
-
-def _luminance(image: np.ndarray) -> np.ndarray:
-    image = np.asarray(image, np.float64)
-    if image.shape[-1] >= 3:
-        return image[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
-    return image[..., 0]
-
-
-def axis_peak(image: np.ndarray) -> float:
-    """Squared-gradient energy (luminance, central differences, as solidlook.py) within 7.5
-    degrees of the grid axes over the energy in the flanks 7.5 to 22.5 degrees from them, times 2
-    (their angular widths): 1 for any texture without a peak at the axes, whatever its own
-    orientation; block edges and pixel staircases, which lie exactly on the axes, raise it.
-    solidlook's axis-energy ratio also rises when a volume lacks the exemplar's orientation (an
-    isotropic volume of a diagonally veined marble scores 1.35): this one does not."""
-    lum = _luminance(image)
-    gy = (lum[2:, 1:-1] - lum[:-2, 1:-1]) / 2
-    gx = (lum[1:-1, 2:] - lum[1:-1, :-2]) / 2
-    energy = gx ** 2 + gy ** 2
-    angle = np.degrees(np.arctan2(gy, gx)) % 90.0
-    off = np.minimum(angle, 90.0 - angle)
-    flanks = energy[(off >= 7.5) & (off < 22.5)].sum()
-    return float(2.0 * energy[off < 7.5].sum() / flanks) if flanks > 0 else 0.0
-
-
-def volume_axis_peak(voxels: np.ndarray) -> float:
-    """The worst slice family's mean axis_peak over 8 slices (the slices solidlook.py reads)."""
-    n = voxels.shape[0]
-    idx = np.linspace(2, n - 3, 8).astype(int)
-    families = (lambda i: voxels[i], lambda i: voxels[:, i], lambda i: voxels[:, :, i])
-    return max(float(np.mean([axis_peak(take(i)) for i in idx])) for take in families)
 
 
 def _metrics(exemplar_path: Path, volume_path: Path) -> dict:
@@ -151,70 +105,111 @@ def _unseen_material_row(name: str, side: int, folder: Path) -> str:
             f"{' / '.join(f'{r:.2f}' for r in ratios)} |")
 
 
+def _timing_rows(quick: bool) -> list[str]:
+    """Wall and CPU seconds per method and size, and the structure step's own seconds."""
+    from solid_structure import synthesize
+
+    rows = []
+    for name in ("marble_swirl_green", "gravel_green_stones"):
+        exemplar = _exemplar(name, 128)
+        for method in TIMED:
+            synthesize([exemplar], 16, method)  # compile
+            for side, runs in ((64, 1 if quick else 3), (128, 1 if quick else 2)):
+                walls, cpus, steps = [], [], []
+                for _ in range(runs):
+                    cpu = time.process_time()
+                    _, wall, step, _ = synthesize([exemplar], side, method)
+                    walls.append(wall)
+                    cpus.append(time.process_time() - cpu)
+                    steps.append(step)
+                step = (f"{statistics.median(steps):.1f}" if steps[0] is not None else "-")
+                rows.append(f"| {name} | {method} | {side}^3 | {runs} | "
+                            f"{statistics.median(walls):.1f} | {min(walls):.1f} | "
+                            f"{max(walls):.1f} | {statistics.median(cpus):.1f} | {step} |")
+    return rows
+
+
+def _wood_rows(folder: Path) -> list[str]:
+    """The wood set (samples/wood_end, _side, _top) per method: the end face's rings and the
+    side face's spacing, as tests/test_solid_structure.py reads them."""
+    from osmap_cli.imageio import read_image, write_image
+    from osmap_cli.solid import SolidOptions, synthesize_solid
+    from osmap_cli.solid.structure import measures
+    from osmap_cli.solid.structure.layers import ring_centre
+    from osmap_cli.solid.structure.segment import lab
+
+    ims = [read_image(REPO / "samples" / f"wood_{n}.png").pixels for n in ("end", "side", "top")]
+    rows = []
+    for method in METHODS:
+        result = synthesize_solid(ims, SolidOptions(width=64, height=64, depth=64, seed=1,
+                                                    method=method))
+        vol = result.voxels
+        fits = [ring_centre(lab(vol[:, :, x])[..., 0]) for x in (16, 32, 48)]
+        periods = []
+        for y in (16, 32, 48):
+            ac = measures.autocorrelation(lab(vol[:, y])[..., 0])
+            periods.append(measures.first_peak(measures.along(ac, 90.0, 32)))
+        centres = " / ".join("-" if c is None else f"{c[0]:.0f}, {c[1]:.0f}" for c, _ in fits)
+        rows.append(f"| {method} | {centres} | "
+                    f"{' / '.join(f'{r:.2f}' for _, r in fits)} | "
+                    f"{' / '.join(f'{p:.1f} ({a:.2f})' for p, a in periods)} |")
+        if method == METHODS[0]:
+            from osmap_cli.solid.preview import render_preview
+
+            write_image(folder / "wood.png", render_preview(vol), 8)
+    return rows
+
+
 def run(quick: bool = False, timing_only: bool = False) -> str:
-    """The Markdown section "## Solid" (`timing_only`: just its timing table, a few minutes)."""
-    from osmap_cli.imageio import write_image
-    from osmap_cli.solid.preview import render_preview
+    """The Markdown section "## Solid" (`timing_only`: just its timing table)."""
+    from solid_structure import HEADER, SUMMARY_HEADER, summary
+    from solid_structure import run as measure_all
 
     lines = ["## Solid", ""]
     threads = os.environ.get("NUMBA_NUM_THREADS", str(os.cpu_count()))
-    ex128 = _exemplar("marble_swirl_green", 128)
-    for method in METHODS:
-        _time(ex128, 16, 1, method=method)  # compile
-    rows = []
-    for method in ("osmap", "kopf"):
-        for side, runs in ((64, 1 if quick else 3), (128, 1 if quick else 2)):
-            walls, cpus, _ = _time(ex128, side, runs, method=method)
-            rows.append(f"| {method} | {side}^3 | {runs} | {statistics.median(walls):.1f} | "
-                        f"{min(walls):.1f} | {max(walls):.1f} | {statistics.median(cpus):.1f} |")
-    lines += [f"Timing: marble_swirl_green (128 px) -> N^3, seed 1, default options, "
-              f"NUMBA_NUM_THREADS={threads}; seconds.", "",
-              "| method | volume | runs | median wall | min | max | median CPU |",
-              "|---|---|---|---|---|---|---|", *rows, ""]
-
+    lines += [f"Timing: 128 px exemplars -> N^3, seed 1, default options of each method, "
+              f"NUMBA_NUM_THREADS={threads}; seconds (wall: median, min, max; CPU: median, all "
+              "threads; structure: the structure step's own seconds, analysis, model fit and "
+              "building the volume's structure, of method structure's wall time).", "",
+              "| exemplar | method | volume | runs | median wall | min | max | median CPU | "
+              "structure |", "|---|---|---|---|---|---|---|---|---|", *_timing_rows(quick), ""]
     if timing_only:
         return "\n".join(lines)
     if not TEXMETRICS_PY.exists():
         return "\n".join(lines + ["(texmetrics venv missing: no quality table)", ""])
-    table = ["| exemplar | px -> volume | method | worst coh_mean | coh_mean, matched sharpness | "
-             "worst coh_p95 | worst hist | worst scale | axis-energy | axis peak | contrast | "
-             "stripe | s |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    sizes = ((64, 64),) if quick else ((64, 64), (128, 128))
-    with tempfile.TemporaryDirectory() as tmp:
-        folder = Path(tmp)
-        for name in NAMES:
-            for ex_side, side in sizes:
-                exemplar = _exemplar(name, ex_side)
-                ex_path = folder / f"{name}_{ex_side}.png"
-                write_image(ex_path, exemplar, 8)
-                for method, engine, changes in VARIANTS:
-                    walls, _, result = _time(exemplar, side, 1, method=engine, changes=changes)
-                    vol_path = folder / f"{name}_{side}_{method}.npy"
-                    np.save(vol_path, result.voxels)
-                    worst = _worst(_metrics(ex_path, vol_path))
-                    look = _look(ex_path, vol_path)
-                    table.append(
-                        f"| {name} | {ex_side} -> {side}^3 | {method} | {worst['coh_mean']:.2f} | "
-                        f"{_matched_coherence(ex_path, vol_path):.2f} | "
-                        f"{worst['coh_p95']:.2f} | {worst['hist']:.2f} | {worst['scale']:.2f} | "
-                        f"{look['worst_axis_ratio']:.2f} | "
-                        f"{volume_axis_peak(result.voxels):.2f} ({axis_peak(exemplar):.2f}) | "
-                        f"{look['lowest_contrast_ratio']:.2f} | "
-                        f"{look['worst_stripe_ratio']:.2f} | {walls[0]:.1f} |")
-                    if method == "osmap":
-                        write_image(REPO / "docs" / f"solid_{name}_{side}.png",
-                                    render_preview(result.voxels), 8)
-    lines += ["Quality (texmetrics.py: worst of the three slice axes; solidlook.py: worst "
-              "axis-energy and stripe ratios, lowest contrast ratio; axis peak: `axis_peak` in "
-              "bench/bench_solid.py, worst slice family, the exemplar's in brackets, 1 = no "
-              "peak at the grid axes; coh_mean at matched sharpness: exemplar and volume both "
-              "low-passed by a Gaussian of sigma 1 first, bench/lowpass.py, so that blur does "
-              "not score better), seed 1; methods: osmap "
-              "(default), muted (the default's settings before session 8, `--preset muted`), "
-              "kopf (`--method kopf`), legacy (the default before issue 13, `--method legacy` or "
-              "`--preset legacy`):", "", *table, ""]
+    sizes = (64,) if quick else (64, 128)
+    rows = []
+    for side in sizes:
+        rows += measure_all(NAMES, (side,), METHODS, REPO / "docs" / f"solid_methods_{side}.jpg")
+    from solid_structure import _row
 
+    lines += ["Quality, seed 1, default options of each method (`osmap solid EX --size N "
+              "--method M`), exemplars from ../shared/exemplars/small resized to N px: "
+              "granules.py's bright and dark shifts (worst axis); texmetrics.py's worst-axis "
+              "scale, hist and coh_mean, and coh_mean at matched sharpness (exemplar and volume "
+              "both low-passed by a Gaussian of sigma 1 first, bench/lowpass.py); solidlook.py's "
+              "worst axis-energy and stripe ratios and lowest contrast; the profile meter "
+              "(osmap_cli.solid.structure.meter: the particle profiles' area fraction, sizes "
+              "and shapes on 6 slices per axis and 12 diagonal cuts, read with the exemplar's "
+              "own segmentation; the largest relative error; particle exemplars only). Contact "
+              "sheets: docs/solid_methods_64.jpg, docs/solid_methods_128.jpg (per volume: the "
+              "preview cube and middle slices, an oblique (1, 1, 1) cut, the exemplar).", "",
+              HEADER, *(_row(r) for r in rows), "",
+              "Over the volumes above, against the bars (granules shifts 0.85-1.18, |log2 "
+              "scale| < 0.3, axis-energy median <= 1.15 and none above 1.3, hist median <= "
+              "0.8, lowest contrast >= 0.75, profile errors <= 0.10, coherence no worse than "
+              "method osmap's):", "", SUMMARY_HEADER, *(summary(rows, m) for m in METHODS), ""]
+    with tempfile.TemporaryDirectory() as tmp:
+        lines += ["The wood set (`osmap solid --x samples/wood_end.png --y samples/wood_side.png "
+                  "--z samples/wood_top.png --size 64 --method M`): the centre the end face's "
+                  "stripes curve around (rows z, cols y; fitted on x slices 16 / 32 / 48: "
+                  "osmap_cli.solid.structure.layers.ring_centre; the exemplar's own: -26, 66, "
+                  "residual 0.05, i.e. above the face) with the fit's residual (over the face "
+                  "size; straight or broken stripes score high), and the side faces' ring "
+                  "spacing (y slices 16 / 32 / 48: the first autocorrelation peak along z and "
+                  "its height; the exemplar's: 7.0 px, 0.92):", "",
+                  "| method | end face: ring centre (row, col) | residual | side: spacing px "
+                  "(autocorrelation) |", "|---|---|---|---|", *_wood_rows(Path(tmp)), ""]
     reference = ["| exemplar | seen half (px) | unseen half: coh_mean (top / bottom seen) | "
                  "`osmap synth` from the seen half: coh_mean | ratio unseen / synth |",
                  "|---|---|---|---|---|"]

@@ -7,7 +7,7 @@ coh_mean falls when a volume is blurred (a volume's slices carry 1-voxel disagre
 the slice families that a blur removes, and soft patches sit near the exemplar's smooth areas),
 so a sharper volume scores worse than a softer one of the same structure; with both sides
 low-passed by the same Gaussian first, the comparison no longer rewards blur
-(docs/solid.md, "Session 8").
+(docs/solid.md, "Measured").
 """
 
 import sys

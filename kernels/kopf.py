@@ -83,21 +83,25 @@ def _dist(query, feats, e, r, c, best):
 
 
 @njit(cache=True, parallel=True)
-def kopf_search(vol, pos, new_pos, dist, feats, basis, mean, ex_of_axis, knn, p):
+def kopf_search(vol, guide, pos, new_pos, dist, feats, basis, mean, ex_of_axis, knn, p):
     """Per window centre and axis: the exemplar window nearest to the volume's window in the
-    PCA space (basis: (n*n*C, D), mean: (n*n*C,), feats: (E, H, W, D) exemplar windows
-    projected). Candidates: the current match, the matches of the 8 neighbouring centres shifted
-    to this centre (and their knn similar positions), random positions; or all (exhaustive)."""
+    PCA space (basis: (n*n*(C+G), D), mean: (n*n*(C+G),), feats: (E, H, W, D) exemplar windows
+    projected). Each window pixel holds the volume's C colours, then the G guide channels of its
+    slice family, guide[a] (float32 (3, Z, Y, X, G); G = 0: colours only): the structure as
+    that family's slices show it, matched against the same channels of the exemplar windows.
+    Candidates: the current match, the matches of the 8 neighbouring centres shifted to this
+    centre (and their knn similar positions), random positions; or all (exhaustive)."""
     nz, ny, nx = vol.shape[0], vol.shape[1], vol.shape[2]
     shape = (nz, ny, nx)
     n = p.size
     h0 = n // 2
     nc = vol.shape[3]
+    ng = guide.shape[4]
     dims = basis.shape[1]
     s = p.stride
     k = knn.shape[3]
     for z in prange(nz):
-        window = np.empty(n * n * nc, np.float64)
+        window = np.empty(n * n * (nc + ng), np.float64)
         query = np.empty(dims, np.float64)
         for y in range(ny):
             for x in range(nx):
@@ -114,10 +118,13 @@ def kopf_search(vol, pos, new_pos, dist, feats, basis, mean, ex_of_axis, knn, p)
                             for ch in range(nc):
                                 window[i] = vol[qz, qy, qx, ch] - mean[i]
                                 i += 1
+                            for ch in range(ng):
+                                window[i] = guide[a, qz, qy, qx, ch] - mean[i]
+                                i += 1
                     # j outer, d inner: each query[d] still sums in j order (same bits as a
                     # dot product per d), but the inner loop runs along a basis row: SIMD
                     query[:] = 0.0
-                    for j in range(n * n * nc):
+                    for j in range(n * n * (nc + ng)):
                         w = window[j]
                         for d in range(dims):
                             query[d] += w * basis[j, d]

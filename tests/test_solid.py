@@ -250,9 +250,11 @@ def _worst_axis(exemplar, volume):
 
 
 def test_every_axis_looks_like_the_exemplar(samples):
+    """Method osmap (the slice optimisation alone; the structure method has its own guards in
+    tests/test_solid_structure.py)."""
     exemplar = read_image(samples / "cells.png").pixels[::2, ::2].copy()  # 64 px
     volume = synthesize_solid([exemplar], SolidOptions(width=40, height=40, depth=40,
-                                                       seed=1)).voxels
+                                                       seed=1, method="osmap")).voxels
     coh, streaks, scale = _worst_axis(exemplar, volume)
     # broken formulations: one 2D position per voxel (here the exemplar extruded along z: the
     # x and y slices are streaks), and voxels drawn at random (noise)
@@ -406,7 +408,8 @@ def test_kopf_search_finds_the_exemplar_window_it_was_cut_from():
     knn = np.zeros((1, h, w, 0, 2), np.int32)
     params = KopfSearch(size=n, stride=2, wrap=True, exhaustive=True, n_random=0, lo=lo, hi=hi,
                         seed=np.uint64(0), salt=np.uint64(0))
-    kopf_search(vol, pos, new, dist, feats, basis, mean, np.zeros(3, np.int64), knn, params)
+    kopf_search(vol, np.zeros((3, 1, 1, 1, 0), np.float32), pos, new, dist, feats, basis, mean,
+                np.zeros(3, np.int64), knn, params)
     # z windows centred at (y, x) with the whole window inside the slice
     for y in range(4, side - n // 2 + 1, 2):  # centres: even in-plane coordinates
         for x in range(4, side - n // 2 + 1, 2):
@@ -417,22 +420,25 @@ def test_kopf_search_finds_the_exemplar_window_it_was_cut_from():
 
 def test_method_option_selects_the_pipeline(run_cli, exemplar, tmp_path):
     outs = {}
-    for method in ("osmap", "kopf", "legacy"):
+    for method in ("structure", "osmap", "kopf", "legacy"):
         out = tmp_path / f"{method}.npy"
         result = _run(run_cli, exemplar, out, "--method", method)
         assert result.code == 0, result.err
         outs[method] = np.load(out)
     assert not np.array_equal(outs["osmap"], outs["kopf"])
     assert not np.array_equal(outs["osmap"], outs["legacy"])
+    # a 32 px crop holds too few cells to read a structure from: method osmap makes it
+    assert np.array_equal(outs["structure"], outs["osmap"])
     default = _run(run_cli, exemplar, tmp_path / "d.npy")
-    assert default.code == 0 and np.array_equal(np.load(tmp_path / "d.npy"), outs["osmap"])
+    assert default.code == 0 and np.array_equal(np.load(tmp_path / "d.npy"), outs["structure"])
     bad = _run(run_cli, exemplar, tmp_path / "b.npy", "--method", "paper")
     assert bad.code == 2 and "--method" in bad.err
     assert SolidOptions().replace(**load_preset("legacy", "solid")).method == "legacy"
-    assert SolidOptions().method == "osmap"
+    assert SolidOptions().method == "structure"
     helptext = run_cli("solid", "--help")
     assert helptext.code == 0
-    assert "--method [osmap|kopf|legacy]" in helptext.out and "Kopf et al. 2007" in helptext.out
+    assert "--method [structure|osmap|kopf|legacy]" in helptext.out
+    assert "Kopf et al. 2007" in helptext.out
 
 
 def test_quality_is_read_by_every_method(exemplar):

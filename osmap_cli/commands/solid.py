@@ -51,16 +51,26 @@ one JSON object per finished job on stdout and nothing else. -j N runs N
 jobs at once; the bytes do not depend on N. --x/--y/--z make one volume.
 
 \b
+--method structure (default) builds the structure first: it reads what
+the exemplar shows (--analyse prints it): separate particles (stones,
+chips, cells), layers (grain, rings, sediment) or a field of phases
+(marble's regions and veins); builds that structure in 3D at the
+exemplar's scale (particles sized by stereology, so their cuts show the
+exemplar's profiles; layers as displaced planes or rings; phases as a
+thresholded smooth random field); then fills in the appearance with the
+optimisation below, every slice window guided by the structure, and
+matches each phase's colours to the exemplar's. An exemplar with none
+of these structures is made by --method osmap. --structure forces one.
 Every voxel holds three exemplar positions, one per slice family (slices
-normal to x, y and z). --method osmap (default): an OS-Map lays them out
-on the coarsest volume, then a texture optimisation (Kopf et al. 2007)
-runs level by level: every slice window finds its nearest exemplar
-window, every voxel takes a robust mean of the colours the windows of
-all three families place on it (at the coarser levels the densest
-colour cluster that two families agree on), and the colours are moved
-half way to the exemplar's histogram. --method kopf: the paper's
-optimisation as published (softer). --method legacy: the search + mode
-pipeline of earlier versions (boxier, paler).
+normal to x, y and z). --method osmap: an OS-Map lays them out on the
+coarsest volume, then a texture optimisation (Kopf et al. 2007) runs
+level by level: every slice window finds its nearest exemplar window,
+every voxel takes a robust mean of the colours the windows of all three
+families place on it (at the coarser levels the densest colour cluster
+that two families agree on), and the colours are moved most of the way
+to the exemplar's histogram. --method kopf: the paper's optimisation as
+published (softer). --method legacy: the search + mode pipeline of
+earlier versions (boxier, paler).
 
 \b
 --x/--y/--z give one exemplar per slice family (Kopf et al. 2007): slices
@@ -112,6 +122,8 @@ unwritable output, runtime failure), 2 usage error, 130 interrupted.
 EPILOG = """\b
 Examples:
   osmap solid marble.png -o marble.npy --size 128
+  osmap solid terrazzo.png --analyse          # writes terrazzo_segmentation.png
+  osmap solid gravel.png -o gravel.npy --size 64 --verbose --structure particles
   osmap solid marble.png -o marble_slices --size 96x64x128 --preview marble.png
   osmap solid granite.png -o granite_8x16.png --size 128 --tileable
   osmap solid --x end.png --y side.png --z side.png -o wood.nrrd --size 64
@@ -245,11 +257,19 @@ def axis_set(base, ex_x, ex_y, ex_z, label="EXEMPLAR"):
               help="Also write float32 (Z, Y, X, 3): exemplar u (column), v (row), index. "
               "With --out-dir: a name template in DIR (e.g. '{stem}_uv.npy').")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@click.option("-v", "--verbose", is_flag=True,
+              help="Also print what the method found and did (method structure: the "
+              "analysis, the structure built, the structure step's seconds).")
+@click.option("--analyse", is_flag=True,
+              help="Make no volume: print what structure the exemplar shows (phases, particle "
+              "sizes and shapes, orientation, layer spacing; what method structure would "
+              "build) and write its segmentation beside it as a picture, "
+              "STEM_segmentation.png (-o FILE.png: there; --out-dir: in DIR).")
 @tuning_flags(SolidOptions)
 def solid_command(exemplars, output, out_dir, name_template, jobs, fail_fast, json_lines,
                   overwrite, scheduler, scheduler_file, threads, size, seed, preset, quality,
                   tileable, orientation, ex_x, ex_y, ex_z, fmt, nrrd_encoding, preview, uv_out,
-                  quiet, **tuning):
+                  quiet, verbose, analyse, **tuning):
     cluster = cluster_spec(scheduler, scheduler_file, threads, jobs)
     options, loaded = volume_settings(size, seed, preset, quality, tileable, orientation,
                                       tuning)
@@ -263,21 +283,47 @@ def solid_command(exemplars, output, out_dir, name_template, jobs, fail_fast, js
     else:
         sets = [(path, (path,)) for path in expand_inputs(exemplars)]
 
+    inputs = real_paths(f for _, files in sets for f in files)
+    if analyse:
+        job_list = _analyse_jobs(sets, output, out_dir, overwrite, options, inputs)
+        return run_batch(job_list, jobs, fail_fast, json_lines, quiet, cluster)
     plans = _plan_outputs(sets, output, out_dir, name_template, fmt, preview, uv_out, overwrite,
                           options, loaded.name)
     from osmap_cli.presets import is_preset_path
 
     # recorded as osmap synth does: a file by its file name (its `name` may be anything)
     recorded = os.path.basename(preset) if is_preset_path(preset) else loaded.name
-    inputs = real_paths(f for _, files in sets for f in files)
     job_list = [SolidJob(
         index=index, exemplar=base, files=files, output=main, kind=kind, options=options,
         preset=recorded, nrrd_encoding=nrrd_encoding, preview=prev, uv_out=uv,
         replace=output is not None or overwrite,
         refused=refusal([main, *(p for p in (uv, prev) if p)], inputs),
-        progress=show_progress(quiet, jobs),
+        progress=show_progress(quiet, jobs), verbose=verbose,
     ) for index, ((base, files), (main, kind, prev, uv)) in enumerate(zip(sets, plans), 1)]
     return run_batch(job_list, jobs, fail_fast, json_lines, quiet, cluster)
+
+
+def _analyse_jobs(sets, output, out_dir, overwrite, options, inputs):
+    """One AnalyseJob per exemplar (or set); the picture beside the exemplar, in --out-dir, or
+    -o (one exemplar)."""
+    from osmap_cli.solid.analyse_job import AnalyseJob, picture_name
+
+    if output is not None and os.path.splitext(output)[1].lower() != ".png":
+        raise click.BadParameter(f"{output}: --analyse writes a .png picture",
+                                 param_hint="'-o'")
+    if output is not None or out_dir is not None:
+        check_destination(output, out_dir, len(sets), None, overwrite)
+    owners: dict[str, str] = {}
+    jobs = []
+    for index, (base, files) in enumerate(sets, 1):
+        target = output if output is not None else picture_name(base)
+        if output is None and out_dir is not None:
+            target = os.path.join(out_dir, os.path.basename(picture_name(base)))
+        claim_output(owners, target, base)
+        jobs.append(AnalyseJob(index=index, exemplar=base, files=files, output=target,
+                               options=options, replace=output is not None or overwrite
+                               or out_dir is None, refused=refusal([target], inputs)))
+    return jobs
 
 
 def _plan_outputs(sets, output, out_dir, name_template, fmt, preview, uv_out, overwrite,

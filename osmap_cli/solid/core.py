@@ -78,6 +78,8 @@ class SolidResult:
 
     voxels: np.ndarray
     source: np.ndarray
+    report: tuple = ()  # what the method found and did, lines for --verbose (structure method)
+    provenance: dict | None = None  # a JSON-able record of the same for the output's metadata
 
     def uv(self) -> np.ndarray:
         """float32 (Z, Y, X, 3): u = exemplar column, v = exemplar row, exemplar index."""
@@ -140,16 +142,22 @@ def window_features(images, n: int, dims: int, hw, seed: int):
             np.ascontiguousarray(mean, np.float64))
 
 
-def window_level(task: SolidTask, level: int, *, window: int, dims: int, knn: int) -> SolidLevel:
+def window_level(task: SolidTask, level: int, *, window: int, dims: int, knn: int,
+                 channels=None) -> SolidLevel:
     """The level's exemplars as n x n windows (n = `window`, smaller on a tiny exemplar) in a
-    `dims`-dimensional PCA space, with `knn` similar positions per window centre."""
+    `dims`-dimensional PCA space, with `knn` similar positions per window centre. `channels`:
+    per exemplar, float32 (h_e, w_e, G) guide channels the windows carry beside the colours
+    (the search features cover both; `stacked`, which the optimisation averages, the colours
+    only)."""
     images = task.exemplars(level)
     ex_shapes = [im.shape[:2] for im in images]
     hw = common_shape(images)
     n = min(window, min(min(s) for s in ex_shapes) - 2)
     flat = np.concatenate([im.reshape(-1, im.shape[2]) for im in images])
     lo, hi = window_bounds(ex_shapes, n)
-    feats, basis, mean = window_features(images, n, dims, hw, task.seed + level)
+    searched = images if channels is None else [
+        np.concatenate([im, np.asarray(g, np.float32)], 2) for im, g in zip(images, channels)]
+    feats, basis, mean = window_features(searched, n, dims, hw, task.seed + level)
     table = np.zeros((len(images), hw[0], hw[1], knn, 2), np.int32)
     if knn:
         for e in range(len(images)):

@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 from dataclasses import dataclass
 
 from osmap_cli.batch import Job
@@ -53,6 +54,7 @@ class SolidJob(Job):
     replace: bool = True  # False: an existing output makes the job "skipped"
     refused: str | None = None
     progress: bool = False
+    verbose: bool = False  # the summary line starts with what the method found and did
 
     @property
     def outputs(self) -> list[str]:
@@ -79,7 +81,7 @@ class SolidJob(Job):
     def check(self, images) -> None:
         import numpy as np
 
-        from osmap_cli.memory import check_memory, volume_bytes
+        from osmap_cli.memory import check_memory, structure_bytes, volume_bytes
         from osmap_cli.solid import volumeio
 
         channels = {im.pixels.shape[2] for im in images}
@@ -106,7 +108,10 @@ class SolidJob(Job):
         made = self.options.synthesis_shape()
         if made != self.options.shape:
             what += f" (turned: {made[2]}x{made[1]}x{made[0]} voxels of material)"
-        check_memory(volume_bytes(made, count, self.options.feature_dims), what)
+        need = volume_bytes(made, count, self.options.feature_dims)
+        if self.options.method == "structure":
+            need += structure_bytes(made)
+        check_memory(need, what)
 
     def compute(self, images):
         from osmap_cli.progress import ProgressBar
@@ -125,6 +130,8 @@ class SolidJob(Job):
         options = self.options
         names = list(self.files) if len(self.files) == 3 else [self.files[0]]
         metadata = volume_metadata(options, self.preset, names, solid_args(options, self.preset))
+        if result.provenance is not None:
+            metadata["structure"] = json.dumps(result.provenance, sort_keys=True)
         depth = 16 if max(im.bit_depth for im in images) >= 16 else 8
         write, folder = volumeio.volume_writer(
             self.output, result.voxels, self.kind, depth=depth,
@@ -146,4 +153,6 @@ class SolidJob(Job):
         extras = [p for p in (self.uv_out, self.preview) if p is not None]
         if extras:
             line += "; also " + ", ".join(extras)
+        if self.verbose and result.report:
+            line = "\n".join([*result.report, line])
         return line, []

@@ -6,7 +6,7 @@ and `run(task, options, progress)` -> SolidResult. The module loads on first use
 (read by --help and the option declarations) costs nothing to import.
 
 >>> list(METHODS)
-['osmap', 'kopf', 'legacy']
+['structure', 'osmap', 'kopf', 'legacy']
 """
 
 from __future__ import annotations
@@ -42,6 +42,11 @@ _OPTIMISATION_QUALITY = ("fast = one iteration per level and at most 1 similar-p
                          "candidate, high = one iteration and 2 candidates more")
 
 METHODS = {m.name: m for m in (
+    Method(name="structure",
+           summary="the 3D structure the exemplar shows first (particles, layers or a phase "
+                   "field), then its appearance by the optimisation guided by it (method osmap "
+                   "when the exemplar shows none)",
+           quality=_OPTIMISATION_QUALITY, module="method_structure"),
     Method(name="osmap",
            summary="the OS-Map lays out the coarsest volume, then a sharpened Kopf "
                    "optimisation",

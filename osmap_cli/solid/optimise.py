@@ -124,10 +124,14 @@ def random_positions(level: SolidLevel, ex_of_axis, seed: int) -> np.ndarray:
 
 
 def optimise(task: SolidTask, levels: list[SolidLevel], start: np.ndarray,
-             opt: Optimisation, progress=None):
+             opt: Optimisation, progress=None, guides=None, initial=None):
     """(voxels float32 (Z, Y, X, C), source int32 (Z, Y, X, 3)) of the finest level: the
     levels (finest first, one per task level) optimised from the coarsest, whose window centres
-    start at `start` int32 (3, Z, Y, X, 2)."""
+    start at `start` int32 (3, Z, Y, X, 2). `guides`: per level (finest first), float32
+    (3, Z, Y, X, G): guide channels every slice family's windows carry beside the colours (the
+    levels' search features then cover colours and guides alike; their `stacked` images, which
+    are averaged, the colours only). `initial`: the coarsest volume's colours for the first
+    search (default: the average of the start positions' windows)."""
     ex_of_axis = task.ex_of_axis
     total = float(len(levels) * opt.iterations)
     done = 0.0
@@ -153,7 +157,9 @@ def optimise(task: SolidTask, levels: list[SolidLevel], start: np.ndarray,
             filled = np.empty_like(pos)
             fill_positions(pos, opt.stride, prev.lo, prev.hi, ex_of_axis, filled)
             pos = upsample_positions(filled, vshape, level.lo, level.hi, ex_of_axis)
-        if coarsest or opt.upsample_render:
+        if coarsest and initial is not None:
+            vol = np.ascontiguousarray(initial, np.float32)
+        elif coarsest or opt.upsample_render:
             # a finer level starts from its own exemplar detail at the upsampled positions,
             # not from the coarser volume blurred by interpolation (a blurred start makes the
             # search prefer smooth exemplar areas: features grow)
@@ -165,7 +171,9 @@ def optimise(task: SolidTask, levels: list[SolidLevel], start: np.ndarray,
             params = KopfSearch(exhaustive=coarsest and it == 0,
                                 salt=np.uint64(index * 1000 + it), **search)
             new_pos = np.empty_like(pos)
-            kopf_search(vol, pos, new_pos, dist, level.feats, level.basis, level.mean,
+            guide = guides[index] if guides is not None else np.zeros((3, 1, 1, 1, 0),
+                                                                       np.float32)
+            kopf_search(vol, guide, pos, new_pos, dist, level.feats, level.basis, level.mean,
                         ex_of_axis, level.knn, params)
             pos = new_pos
             weights = np.ones(imgs.shape[:3], np.float32)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from osmap_cli.errors import OsmapError
 from osmap_cli.options import Options, option
 from osmap_cli.solid.methods import METHODS, method_help
+from osmap_cli.solid.structure import STRUCTURES
 
 QUALITIES = ("fast", "default", "high")
 MAX_SIDE = 1024
@@ -36,7 +37,7 @@ class SolidOptions(Options):
     rotate_y: float = option(0.0, -360.0, 360.0, "the material turned about y, degrees")
     rotate_z: float = option(0.0, -360.0, 360.0, "the material turned about z, degrees")
     # --- tunables (solid preset keys and tuning flags) ---
-    method: str = option("osmap", help=method_help(), choices=tuple(METHODS), tunable=True)
+    method: str = option("structure", help=method_help(), choices=tuple(METHODS), tunable=True)
     levels: int = option(4, 1, 8, "pyramid levels (a volume side is halved while it keeps >= "
                          "16 voxels, the exemplar while its sides do)", tunable=True)
     patch_radius: int = option(2, 1, 4, "in-plane matching window half-size", tunable=True)
@@ -81,6 +82,22 @@ class SolidOptions(Options):
     som_anisotropy: float = option(0.25, 0.0, 1.0, "kernel weight across / along each component",
                                    tunable=True)
 
+    # --- method structure (osmap_cli/solid/method_structure.py; its fill also reads the
+    #     kopf_* window settings, knn and kopf_histogram below) ---
+    structure: str = option("auto", help="method structure: the 3D structure built: auto (what "
+                            "the analysis finds), particles, layers, field (phase regions and "
+                            "veins), or none (the osmap method's slice optimisation alone)",
+                            choices=STRUCTURES, tunable=True)
+    phases: int = option(0, 0, 4, "method structure: colour phases of the exemplar's "
+                         "segmentation (0: chosen from the exemplar, 2 to 4)", tunable=True)
+    guide_weight: float = option(1.0, 0.0, 10.0, "method structure: weight of the structure's "
+                                 "guide channels against the colours in the window search",
+                                 tunable=True)
+    guide_clip: float = option(4.0, 1.0, 32.0, "method structure: pixels from a phase "
+                               "boundary at which the distance guide saturates", tunable=True)
+    phase_match: float = option(1.0, 0.0, 1.0, "method structure: how far each phase's colours "
+                                "(and each particle's mean colour) move to the exemplar's",
+                                tunable=True)
     # --- methods osmap and kopf (texture optimisation, osmap_cli/solid/optimise.py) ---
     kopf_window: int = option(8, 4, 16, "window side n of the slice neighbourhoods (n x n)",
     tunable=True)
@@ -130,8 +147,9 @@ class SolidOptions(Options):
     sharpen_steps: int = option(0, 0, 20, "with sharpen_bandwidth: mean-shift steps from the "
                                "weighted mean (Gaussian kernel) instead of the densest "
                                "proposal's cluster; 0: densest", tunable=True)
-    final_histogram: float = option(0.75, 0.0, 1.0, "method osmap: how far the final colours are "
-                                   "moved to the exemplar's per-channel distribution", tunable=True)
+    final_histogram: float = option(0.75, 0.0, 1.0, "methods osmap and structure: how far the "
+                                   "final colours are moved to the exemplar's per-channel "
+                                   "distribution", tunable=True)
 
     @property
     def shape(self) -> tuple[int, int, int]:

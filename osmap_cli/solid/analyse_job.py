@@ -1,0 +1,98 @@
+"""One `osmap solid --analyse` job: an exemplar (or one --x/--y/--z set) -> what structure the
+structure method reads from it (printed) and its segmentation beside it as a picture.
+
+    read (the exemplars) -> check (channels, size) -> compute (the analysis and the model)
+    -> stage (the picture, one transaction) -> commit
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+from osmap_cli.batch import Job
+from osmap_cli.errors import OsmapError
+
+__all__ = ["AnalyseJob", "picture_name"]
+
+
+def picture_name(exemplar: str) -> str:
+    """The picture's default path: beside the exemplar, STEM_segmentation.png."""
+    import os
+
+    stem = os.path.splitext(exemplar)[0]
+    return f"{stem}_segmentation.png"
+
+
+@dataclass(frozen=True)
+class AnalyseJob(Job):
+    """The analysis of one exemplar or --x/--y/--z set and where its picture goes."""
+
+    index: int
+    exemplar: str
+    files: tuple  # (x, y, z) exemplars, or one for all three families
+    output: str  # the segmentation picture (.png)
+    options: object  # SolidOptions (validated): structure, phases, tileable, seed
+    replace: bool = True
+    refused: str | None = None
+    progress: bool = False
+
+    @property
+    def outputs(self) -> list[str]:
+        return [self.output]
+
+    def describe(self) -> dict:
+        record = {"input": self.exemplar, "outputs": self.outputs,
+                  "options": {k: v for k, v in dataclasses.asdict(self.options).items()
+                              if k in ("structure", "phases", "tileable", "seed")}}
+        if len(self.files) == 3:
+            record["axis_inputs"] = list(self.files)
+        return record
+
+    def read(self) -> list:
+        from osmap_cli.imageio import read_image
+
+        cache = {}
+        for f in self.files:
+            if f not in cache:
+                cache[f] = read_image(f)
+        return [cache[f] for f in self.files]
+
+    def check(self, images) -> None:
+        import numpy as np
+
+        from osmap_cli.solid import volumeio
+
+        if len({im.pixels.shape[2] for im in images}) != 1:
+            raise OsmapError("per-axis exemplars need the same number of channels")
+        for name, im in zip(self.files, images):
+            if min(im.pixels.shape[:2]) < 8:
+                raise OsmapError(f"{name}: exemplar is smaller than 8x8 pixels")
+            if not np.all(np.isfinite(im.pixels)):
+                raise OsmapError(f"{name}: the exemplar has NaN or infinite pixel values")
+        volumeio.check_target(self.output, "png")
+
+    def compute(self, images):
+        import numpy as np
+
+        from osmap_cli.solid.structure.method import plan
+
+        distinct = [im.pixels for im in images]
+        ex_of_axis = np.zeros(3, np.int64) if len(distinct) == 1 else np.arange(3)
+        opts = self.options
+        return plan(distinct, ex_of_axis, opts.structure, opts.phases, opts.seed, opts.tileable)
+
+    def stage(self, outputs, images, found) -> tuple[str, list[str]]:
+        import numpy as np
+
+        from osmap_cli.imageio import encode_image
+        from osmap_cli.solid.structure.picture import segmentation_picture
+
+        pictures = [segmentation_picture(im, an) for im, an in zip(found.images, found.analyses)]
+        width = max(p.shape[1] for p in pictures)
+        rows = [np.pad(p, ((0, 4), (0, width - p.shape[1]), (0, 0)), constant_values=1.0)
+                for p in pictures]
+        picture = np.concatenate(rows, 0)[:-4]
+        outputs.stage(self.output, lambda temp: encode_image(temp, picture, 8,
+                                                             name=self.output))
+        return "\n".join([*found.report(), f"wrote {self.output}: the segmentation"]), []

@@ -1,0 +1,84 @@
+"""Method structure (the default): the 3D structure first, then the appearance.
+
+The exemplars are analysed (osmap_cli.solid.structure.analysis): separate particles (stones,
+chips, cells), layers (grain, rings, sediment), a phase field (regions and veins) or none of
+these. The structure found is built in 3D at the exemplar's scale (particles by stereology by
+simulation, layers as the bands of a displaced planar or cylindrical field, phase fields as a
+truncated Gaussian field), then the Kopf et al. optimisation fills in the appearance with the
+structure as guide channels of every slice window, starting from the OS-Map's layout of the
+coarsest volume; finally each phase's colours, and each particle's mean colour, are matched to
+the exemplar's, and the whole volume's colours moved `final_histogram` of the way to the
+exemplar's distribution. An exemplar with none of these structures is made by method osmap.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from osmap_cli.solid import method_osmap
+from osmap_cli.solid.core import SolidResult, SolidTask
+from osmap_cli.solid.layout import Layout
+from osmap_cli.solid.optimise import Optimisation, quality_scaled
+from osmap_cli.solid.structure.fill import Fill, fill
+from osmap_cli.solid.structure.method import build_structure, finish, plan
+from osmap_cli.texture.histogram import match_quantiles
+
+if TYPE_CHECKING:
+    from osmap_cli.solid.options import SolidOptions
+
+
+@dataclass(frozen=True)
+class Options:
+    """What to build (structure, phases), how to fill it (Fill) and the method used when the
+    exemplar shows no structure (method osmap's options)."""
+
+    structure: str
+    phases: int
+    fill: Fill
+    final_histogram: float  # how far the final colours move to the exemplar's distribution
+    fallback: method_osmap.Options
+
+    @classmethod
+    def from_solid(cls, opts: SolidOptions) -> Options:
+        iterations, knn = quality_scaled(opts.quality, opts.kopf_iterations, opts.knn)
+        return cls(
+            structure=opts.structure, phases=opts.phases,
+            fill=Fill(
+                window=opts.kopf_window, dims=opts.kopf_dims, knn=knn,
+                optimisation=Optimisation(
+                    stride=opts.kopf_stride, iterations=iterations, r=opts.kopf_r,
+                    colour_histogram=opts.kopf_histogram,
+                    position_histogram=opts.kopf_histogram, upsample_render=True),
+                layout=Layout(steps_per_node=opts.som_steps_per_node,
+                              sigma_max=opts.som_sigma_max, anisotropy=opts.som_anisotropy),
+                clip=opts.guide_clip, guide_weight=opts.guide_weight,
+                phase_match=opts.phase_match),
+            final_histogram=opts.final_histogram,
+            fallback=method_osmap.Options.from_solid(opts))
+
+
+def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
+    started = time.perf_counter()
+    found = plan(task.images, task.ex_of_axis, options.structure, options.phases, task.seed,
+                 task.tileable)
+    if found.kind == "none":
+        result = method_osmap.run(task, options.fallback, progress)
+        return SolidResult(result.voxels, result.source, tuple(found.report()),
+                           found.summary())
+    built = build_structure(found, task.shapes[0], task.seed, task.tileable)
+    structure_seconds = time.perf_counter() - started
+    voxels, source = fill(task, found.ex_labels, found.ex_identity, built.labels,
+                          built.identity, options.fill, progress)
+    voxels = finish(voxels, found, built, options.fill.phase_match, task.tileable)
+    # the per-phase matching moves the low-pass only; this one gives back the exemplar's
+    # extreme colours that the optimisation's averaging loses
+    pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])
+    voxels = match_quantiles(voxels, pixels, options.final_histogram)
+    seconds = time.perf_counter() - started
+    report = (*found.report(), f"structure step {structure_seconds:.1f} s of "
+              f"{seconds:.1f} s (analysis and model {found.seconds:.1f} s)")
+    return SolidResult(voxels, source, report, found.summary())

@@ -1,0 +1,22 @@
+"""The structure-first solid method's engine (`osmap solid --method structure`, the default):
+read what structure the exemplar shows, build that structure in 3D, fill in the appearance.
+
+One job a module:
+- segment: the exemplar's phases (colour clusters in CIELAB), read alike on exemplars and
+  on a volume's slices;
+- measures: orientation (structure tensor), autocorrelation, layer period, lattice test,
+  grey-level morphology, distance transforms;
+- profiles: the particle profiles' statistics (area fraction, size distribution, solidity,
+  elongation);
+- analysis: what the exemplar shows: particles, layers, a phase field or none (`analyse`);
+- particles, layers, field: the 3D structures and the fitting of their models (stereology by
+  simulation, band sequences, a truncated Gaussian field); noise: smooth random fields;
+- method: the analysis over the exemplars and the model fitted (`plan`), the volume's
+  structure (`build_structure`), the final colour matching (`finish`);
+- fill: the guided slice-window optimisation that gives the structure its appearance;
+- slices, meter, picture: cuts through volumes, the profile meter, the --analyse picture.
+
+This package imports nothing heavy at import time; STRUCTURES is the --structure choice list.
+"""
+
+STRUCTURES = ("auto", "particles", "layers", "field", "none")

@@ -1,0 +1,278 @@
+"""Layers in 3D: wood grain, growth rings, sediment, veined sheets as the bands of a scalar
+field u: planes perpendicular to a 3D normal (u = n . x) or cylinders around an axis (rings:
+u = distance from the axis), both displaced by smooth noise (the exemplar's waviness). Along
+u the bands follow each other as in the exemplar: the phases' run lengths across the stripes
+and which phase follows which are read from the exemplar and sampled as a Markov chain.
+
+The normal: every slice family whose exemplar shows stripes at an angle constrains the layers'
+trace in that family's plane; the normal is the least-squares direction perpendicular to all
+traces. With one exemplar the two side families (x and y, whose rows are z) are honoured
+exactly; the third then shows the traces the geometry allows (docs/solid.md: a single planar
+grain cannot run along the exemplar's diagonal in all three families; one shows the mirrored
+diagonal, or the plane of the layers).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from osmap_cli.solid.structure.noise import smooth_noise
+
+RING_FIT = 0.25  # rings: the fitted centre's residual over the image size stays below this
+RING_SIDES = 0.35  # ... and the other families' stripes are at least this coherent
+MIN_RUN = 1.0
+WOBBLE_LENGTH = 4.0  # the displacement's correlation length, in layer spacings
+MAX_CHAIN = 1 << 20
+STREAK_LENGTH = 0.7  # fibres: correlation across the grain, in layer spacings
+STREAK_STRETCH = 12.0  # ... and this many times longer along it
+STREAK_AMPLITUDE = 0.35  # ... displacement, in layer spacings
+
+
+@dataclass(frozen=True)
+class LayerModel:
+    """normal (z, y, x) of planar layers, or axis (0, 1, 2 = x, y, z) and centre (the axis'
+    two other volume coordinates, relative to the volume's centre) of rings; runs[k]: the
+    exemplar's run lengths of phase k across the layers (px); transitions (K, K): which phase
+    follows which; wobble: displacement amplitude (voxels); spacing: mean period (px)."""
+
+    normal: np.ndarray | None
+    axis: int
+    centre: tuple
+    runs: tuple
+    transitions: np.ndarray
+    wobble: float
+    spacing: float
+    extent: tuple = (0.0, 0.0)  # rings: the end exemplar's size (rows, cols), px
+    across: np.ndarray | None = None  # fibres: the direction (z, y, x) within the layers
+    #                                   across their grain (streaks vary fast along it only)
+    streaks: float = 0.0  # their displacement amplitude (voxels)
+
+    @property
+    def rings(self) -> bool:
+        return self.normal is None
+
+
+def stripe_direction(angle: float, family: int) -> np.ndarray:
+    """The 3D direction (z, y, x) of a stripe at `angle` degrees (ccw from the image's x axis,
+    rows down) in a slice of family 0, 1, 2 (normal to x: rows z, cols y; y: rows z, cols x;
+    z: rows y, cols x)."""
+    col, row = np.cos(np.radians(angle)), -np.sin(np.radians(angle))
+    t = np.zeros(3)
+    rows_dim, cols_dim = ((0, 1), (0, 2), (1, 2))[family]
+    t[rows_dim], t[cols_dim] = row, col
+    return t
+
+
+def layer_normal(angles, weights) -> np.ndarray:
+    """The unit normal (z, y, x) most nearly perpendicular to every family's stripe direction
+    (angles[a] in degrees, None: no stripes in that family), weighted."""
+    m = np.zeros((3, 3))
+    for a, (angle, w) in enumerate(zip(angles, weights)):
+        if angle is not None:
+            t = stripe_direction(angle, a)
+            m += w * np.outer(t, t)
+    vals, vecs = np.linalg.eigh(m)
+    n = vecs[:, 0]
+    return n * (1 if n[np.argmax(np.abs(n))] > 0 else -1)
+
+
+def ring_centre(lum: np.ndarray, sigma: float = 2.0):
+    """((row, col) of the point the stripes curve around, residual over the image size): the
+    least-squares intersection of the lines through every pixel along its gradient (weighted
+    by the local coherence); residual inf when the stripes are straight (no intersection)."""
+    from osmap_cli.solid.structure.segment import gaussian_blur
+
+    gy, gx = np.gradient(lum)
+    j = gaussian_blur(np.stack([gx * gx, gy * gy, gx * gy], -1), sigma)
+    jxx, jyy, jxy = j[..., 0], j[..., 1], j[..., 2]
+    theta = 0.5 * np.arctan2(2 * jxy, jxx - jyy)  # gradient direction (x right, y down)
+    w = np.sqrt((jxx - jyy) ** 2 + 4 * jxy ** 2)
+    ux, uy = np.cos(theta), np.sin(theta)
+    rows, cols = np.mgrid[0:lum.shape[0], 0:lum.shape[1]].astype(np.float64)
+    # perpendicular of each line: (I - u u^T); solve sum w P c = sum w P p
+    pxx, pyy, pxy = 1 - ux * ux, 1 - uy * uy, -ux * uy
+    a = np.array([[np.sum(w * pyy), np.sum(w * pxy)], [np.sum(w * pxy), np.sum(w * pxx)]])
+    b = np.array([np.sum(w * (pyy * rows + pxy * cols)), np.sum(w * (pxy * rows + pxx * cols))])
+    if np.linalg.cond(a) > 1e4:
+        return None, np.inf
+    c = np.linalg.solve(a, b)
+    dr, dc = rows - c[0], cols - c[1]
+    off = dr * pyy * dr + 2 * dr * pxy * dc + dc * pxx * dc  # squared distance to each line
+    residual = np.sqrt(np.sum(w * off) / np.sum(w)) / max(lum.shape)
+    return (float(c[0]), float(c[1])), float(residual)
+
+
+def runs_along(labels: np.ndarray, starts, step) -> list:
+    """[(phase, length)] runs of labels along the lines from `starts` (rows, cols float arrays)
+    in direction `step` (drow, dcol), nearest-pixel sampling; the first and last run of every
+    line (cut by the image border) left out."""
+    h, w = labels.shape
+    out = []
+    for r0, c0 in zip(*starts):
+        t = np.arange(0, 2 * max(h, w))
+        r = np.rint(r0 + t * step[0]).astype(int)
+        c = np.rint(c0 + t * step[1]).astype(int)
+        inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+        if inside.sum() < 4:
+            continue
+        vals = labels[r[inside], c[inside]]
+        change = np.flatnonzero(np.diff(vals)) + 1
+        bounds = np.concatenate([[0], change, [len(vals)]])
+        for i in range(1, len(bounds) - 2):
+            out.append((int(vals[bounds[i]]), float(bounds[i + 1] - bounds[i])))
+    return out
+
+
+def run_statistics(runs, phases: int):
+    """(run lengths per phase, transition matrix between consecutive phases)."""
+    lengths = [np.array([n for k, n in runs if k == p] or [MIN_RUN]) for p in range(phases)]
+    trans = np.ones((phases, phases)) * 1e-3
+    np.fill_diagonal(trans, 0.0)
+    for (k0, _), (k1, _) in zip(runs[:-1], runs[1:]):
+        if k0 != k1:
+            trans[k0, k1] += 1
+    trans /= trans.sum(1, keepdims=True)
+    return tuple(lengths), trans
+
+
+def band_sequence(model: LayerModel, extent: float, seed: int):
+    """(starts, phases): band boundaries along u covering [-extent, extent], sampled from the
+    run lengths with the transition matrix (a Markov chain of phases)."""
+    rng = np.random.default_rng(seed)
+    k = len(model.runs)
+    phase = int(rng.integers(k))
+    u = -extent - float(rng.uniform(0, model.spacing))
+    starts, phases = [], []
+    while u < extent and len(starts) < MAX_CHAIN:
+        starts.append(u)
+        phases.append(phase)
+        u += max(MIN_RUN, float(rng.choice(model.runs[phase])))
+        phase = int(rng.choice(k, p=model.transitions[phase]))
+    starts.append(u)
+    return np.array(starts), np.array(phases, np.int64)
+
+
+def layer_coordinate(shape, model: LayerModel, seed: int, wrap: bool) -> np.ndarray:
+    """float32 (Z, Y, X): u at every voxel centre, displaced by the wobble."""
+    grids = np.meshgrid(*(np.arange(n, dtype=np.float32) + 0.5 - n / 2 for n in shape),
+                        indexing="ij")
+    if model.rings:
+        # the axis as far from the end face's centre as in the end exemplar, in proportion to
+        # the face's size when it is smaller (a smaller face shows the exemplar's framing)
+        dims = [d for d in range(3) if d != 2 - model.axis]
+        k = [min(1.0, shape[d] / e) if e else 1.0 for d, e in zip(dims, model.extent)]
+        u = np.hypot(grids[dims[0]] - k[0] * model.centre[0],
+                     grids[dims[1]] - k[1] * model.centre[1])
+    else:
+        u = sum(float(model.normal[d]) * grids[d] for d in range(3))
+    if model.wobble > 0:
+        length = WOBBLE_LENGTH * model.spacing
+        u = u + model.wobble * smooth_noise(shape, length, seed + 11, wrap)
+    if model.streaks > 0:
+        # fibres: a displacement that changes fast across the grain within the layers and
+        # slowly along the grain and the normal, so a cut parallel to the layers shows streaks
+        # along the grain instead of one flat band, and cuts across the layers keep them whole
+        u = u + model.streaks * smooth_noise(shape, STREAK_STRETCH * STREAK_LENGTH
+                                             * model.spacing, seed + 13, wrap, model.across,
+                                             1.0 / STREAK_STRETCH)
+    return u.astype(np.float32)
+
+
+def build_layers(shape, model: LayerModel, seed: int, wrap: bool) -> np.ndarray:
+    """int64 (Z, Y, X): the phase of every voxel."""
+    u = layer_coordinate(shape, model, seed, wrap)
+    extent = float(np.abs(u).max()) + 2 * model.spacing
+    starts, phases = band_sequence(model, extent, seed)
+    idx = np.clip(np.searchsorted(starts, u, side="right") - 1, 0, len(phases) - 1)
+    return phases[idx]
+
+
+def wobble_amplitude(lum: np.ndarray, angle: float, spacing: float) -> float:
+    """Voxels of displacement that give the exemplar's waviness: the local stripe angle's
+    spread (radians, coherence-weighted) times the displacement's correlation length."""
+    from osmap_cli.solid.structure.segment import gaussian_blur
+
+    gy, gx = np.gradient(gaussian_blur(lum[..., None], max(1.0, spacing / 4))[..., 0])
+    j = gaussian_blur(np.stack([gx * gx, gy * gy, gx * gy], -1), max(2.0, spacing / 2))
+    jxx, jyy, jxy = j[..., 0], j[..., 1], j[..., 2]
+    w = np.sqrt((jxx - jyy) ** 2 + 4 * jxy ** 2)
+    local = 0.5 * np.arctan2(2 * jxy, jxx - jyy)
+    mean = 0.5 * np.arctan2(np.sum(w * np.sin(2 * local)), np.sum(w * np.cos(2 * local)))
+    dev = np.angle(np.exp(2j * (local - mean))) / 2
+    spread = float(np.sqrt(np.sum(w * dev ** 2) / max(np.sum(w), 1e-12)))
+    return float(np.tan(min(spread, 0.6)) * WOBBLE_LENGTH * spacing / np.sqrt(2))
+
+
+def fit_layers(images, labels, analyses, ex_of_axis) -> LayerModel:
+    """The layer model of the exemplars (images / labels / analyses: one per distinct
+    exemplar; ex_of_axis: the exemplar of each slice family)."""
+    from osmap_cli.solid.structure.segment import gaussian_blur, lab
+
+    lums = [gaussian_blur(lab(im), 0.8)[..., 0] for im in images]
+    layered = [an.kind == "layers" for an in analyses]
+    single = len(images) == 1
+    phases = int(max(lb.max() for lb in labels)) + 1
+    # rings: one family's exemplar curves around a centre, the others show straight stripes
+    ring = None
+    if not single:
+        for a in range(3):
+            e = int(ex_of_axis[a])
+            centre, residual = ring_centre(lums[e])
+            if centre is None or residual >= RING_FIT or analyses[e].coherence >= 0.85:
+                continue
+            # the other families show stripes along the axis (their straight cuts of the rings)
+            axis_dir = np.zeros(3)
+            axis_dir[2 - a] = 1.0
+            if all(analyses[int(ex_of_axis[b])].coherence >= RING_SIDES
+                   and abs(stripe_direction(analyses[int(ex_of_axis[b])].angle, b) @ axis_dir)
+                   >= np.cos(np.radians(20)) for b in range(3) if b != a):
+                ring = (a, centre)
+                break
+    runs = []
+    if ring is not None:
+        a, centre = ring
+        e = int(ex_of_axis[a])
+        lb = labels[e]
+        h, w = lb.shape
+        angles = np.linspace(0, 2 * np.pi, 90, endpoint=False)
+        for t in angles:
+            runs += runs_along(lb, (np.array([centre[0]]), np.array([centre[1]])),
+                               (np.sin(t), np.cos(t)))
+        normal, axis = None, a
+        rel = (centre[0] - h / 2 + 0.5, centre[1] - w / 2 + 0.5)
+    else:
+        weights = [1.0, 1.0, 1e-3] if single else [1.0, 1.0, 1.0]
+        angles = [analyses[int(ex_of_axis[a])].angle if layered[int(ex_of_axis[a])] else None
+                  for a in range(3)]
+        normal, axis, rel = layer_normal(angles, weights), -1, (0.0, 0.0)
+        e = next(int(ex_of_axis[a]) for a in range(3) if angles[a] is not None)
+        lb = labels[e]
+        h, w = lb.shape
+        ang = np.radians(analyses[e].angle)
+        step = (np.cos(ang), np.sin(ang))  # across the stripes (rows down)
+        along = np.linspace(-max(h, w), max(h, w), 4 * max(h, w))
+        r0 = h / 2 - along * np.sin(ang) - step[0] * max(h, w)
+        c0 = w / 2 + along * np.cos(ang) - step[1] * max(h, w)
+        runs = runs_along(lb, (r0, c0), step)
+        angle_ref, lum_ref = analyses[e].angle, lums[e]
+    lengths, trans = run_statistics(runs, phases)
+    spacing = float(sum(np.mean(x) for x in lengths))
+    if ring is not None:
+        # the waviness along the axis shows on the other families' straight stripes
+        e = int(ex_of_axis[(ring[0] + 1) % 3])
+        angle_ref, lum_ref = analyses[e].angle, lums[e]
+    wobble = wobble_amplitude(lum_ref, angle_ref, spacing)
+    across, streaks = None, 0.0
+    if single:
+        # one exemplar shows the layers on every face: a face parallel to them gets the
+        # exemplar's streaks along its columns (the grain along the side faces' stripes)
+        grain = stripe_direction(analyses[0].angle, 1)
+        grain = grain - (grain @ normal) * normal
+        grain /= max(np.linalg.norm(grain), 1e-9)
+        across = np.cross(normal, grain)
+        streaks = STREAK_AMPLITUDE * spacing
+    extent = labels[int(ex_of_axis[ring[0]])].shape if ring is not None else (0.0, 0.0)
+    return LayerModel(normal, axis, rel, lengths, trans, wobble, spacing,
+                      tuple(float(v) for v in extent), across, streaks)

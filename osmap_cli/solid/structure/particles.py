@@ -1,0 +1,263 @@
+"""Particles in 3D: stones, chips, grains and cells as separate bodies whose cuts show the
+exemplar's profiles.
+
+Stereology by simulation (the spirit of Jagnow, Dorsey and Rushmeier 2004, without the analytic
+unfolding): each 3D particle takes one exemplar profile as its source (its colour and its
+relative size), the 3D number distribution weighting each profile by 1 / diameter (a plane hits
+a particle with probability proportional to its size); a few rounds of build, cut (axis slices
+and diagonal planes), measure with the exemplar's own profile statistics and correct (number,
+size, spread of sizes, elongation, roughness) land the cuts' area fraction, size distribution
+and shape on the exemplar's.
+
+Shapes: an ellipsoid of random orientation cut by a few random planes (angular chips) with a
+smooth bump on its radius (irregular outlines). Placement: random sequential addition of their
+bounding spheres, then every voxel belongs to the particle of least power distance (a Laguerre
+cell, so neighbours never merge) if inside its shape and more than half a gap from the cell's
+wall: sparse particles keep their shapes, dense ones pack as cells with gaps between them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from osmap_cli.solid.structure.profiles import ProfileStats, profile_stats
+from osmap_cli.solid.structure.slices import DIAGONALS, axis_slices, oblique_slice
+from osmap_kernels.structure import place_spheres, render_particles
+
+PLANES = 6  # random cutting planes per particle
+MIN_VOXELS = 64  # voxels per particle at the least (a 4-voxel cube)
+BUMPS = 6  # random cosine bumps on the radius
+PLACE_ATTEMPTS = 24
+FIT_ROUNDS = 6
+PROBE_SLICES = 6  # per family, plus the diagonal planes
+DENSE = 0.5  # area fraction above which particles pack as cells
+MIN_GAP, MAX_GAP = 1.5, 6.0  # voxels: thinner walls do not separate cells on a cut
+MAX_STEP = 1.3
+FINAL_GAP = 1.5  # voxels: the least gap between touching particles in a volume (thinner gaps
+#                  vanish in the fill)
+SOURCE_MIN_AREA = 1  # px: specks too are particles (the fill alone does not make them)
+# the sizes fitted are the area-weighted mean and the 90th percentile: what the eye reads as the
+# stones' size (the many small cuts of a particle's caps, which a 2D exemplar need not show,
+# weigh little in both)
+FITTED = ("fraction", "diameter", "d90", "elongation", "solidity")
+
+
+@dataclass(frozen=True)
+class ParticleSources:
+    """The exemplar's profiles: diameter (px), mean colour and phase of each; the statistics
+    the 3D particles' cuts must reproduce; the typical gap between touching profiles (px)."""
+
+    diameters: np.ndarray
+    colours: np.ndarray
+    target: ProfileStats
+    gap: float
+
+
+@dataclass(frozen=True)
+class ParticleParams:
+    """density: particles per voxel; size: 3D radius over the source profile's radius;
+    spread: exponent on the relative source size (< 1 narrows the 3D size distribution);
+    aspect: longest over shortest ellipsoid axis; bumps: radius modulation amplitude;
+    cut: depth of the cutting planes (relative radius, 1 = no cut); exclusion: how far
+    apart placement keeps the bounding spheres (x the sum of radii); gap: voxels between
+    touching particles."""
+
+    density: float
+    size: float = 4.0 / math.pi
+    spread: float = 0.8
+    aspect: float = 1.4
+    bumps: float = 0.08
+    cut: float = 0.5
+    exclusion: float = 0.9
+    gap: float = 1.5
+
+
+@dataclass(frozen=True)
+class Particles:
+    """A built structure: owner int32 (Z, Y, X) particle index (-1: matrix); sdf float32:
+    signed distance-like value, positive inside particles (voxels); source int64 (N,): the
+    exemplar profile of every particle."""
+
+    owner: np.ndarray
+    sdf: np.ndarray
+    source: np.ndarray
+
+
+def sources_from(image: np.ndarray, mask: np.ndarray, stats: ProfileStats,
+                 wrap: bool = False) -> ParticleSources:
+    """The profiles of a particle mask (bool (H, W)) with their colours."""
+    from osmap_cli.solid.structure.measures import squared_distance
+    from osmap_cli.solid.structure.profiles import profile_ids
+
+    ids, count = profile_ids(mask.astype(np.int64), (1,), wrap)
+    flat = ids.ravel()
+    keep = flat >= 0
+    area = np.bincount(flat[keep], minlength=count).astype(np.float64)
+    big = area >= SOURCE_MIN_AREA
+    colours = np.stack([np.bincount(flat[keep], image.reshape(-1, image.shape[2])[keep, c],
+                                    count) / np.maximum(area, 1)
+                        for c in range(image.shape[2])], 1)
+    # the gap: twice the mean distance from matrix pixels between particles to the nearest one
+    dist = np.sqrt(squared_distance(mask, wrap))
+    between = (~mask) & (dist <= 4)
+    gap = float(2 * dist[between].mean()) if between.any() else 1.5
+    return ParticleSources(2 * np.sqrt(area[big] / np.pi), colours[big], stats, gap)
+
+
+def _rotations(rng, n):
+    """n uniform random rotation matrices (from unit quaternions)."""
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], 1)
+
+
+def _unit(rng, shape):
+    v = rng.normal(size=(*shape, 3))
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def build(shape, params: ParticleParams, sources: ParticleSources, seed: int,
+          wrap: bool, factor: float = 1.0) -> Particles:
+    """The particles of a (Z, Y, X) volume (periodic with wrap); `factor`: the sources and
+    parameters are in pixels of an image `factor` times larger than a voxel (the analysis'
+    working resolution): lengths shrink by it, the number per voxel grows by its cube."""
+    rng = np.random.default_rng(seed)
+    volume = float(np.prod(shape))
+    # at most one particle per MIN_VOXELS voxels: a fit chasing a degenerate target (a few
+    # large profiles among many specks) cannot ask for more particles than voxels
+    n = max(1, min(int(round(params.density * factor ** 3 * volume)),
+                   int(volume // MIN_VOXELS)))
+    d = sources.diameters / factor
+    weights = 1.0 / d
+    pick = rng.choice(len(d), n, p=weights / weights.sum())
+    mean_d = float(np.exp(np.log(d).mean()))
+    radii = 0.5 * params.size * mean_d * (d[pick] / mean_d) ** params.spread
+    order = np.argsort(-radii, kind="stable")
+    radii, pick = radii[order], pick[order]
+    # oblate: two long axes, one short (chips and stones lie flat; their random cuts are as
+    # elongated as the exemplar's profiles at a milder aspect than needles would need)
+    a = params.aspect ** (1.0 / 3.0)
+    axes = np.stack([np.full(n, a), np.full(n, a), np.full(n, a / params.aspect)], 1)
+    rot = _rotations(rng, n)
+    frames = (rot.transpose(0, 2, 1) / axes[:, :, None]).astype(np.float64)
+    planes = np.concatenate([_unit(rng, (n, PLANES)),
+                             rng.uniform(params.cut, 1.0, (n, PLANES, 1))], 2)
+    bumps = np.concatenate([_unit(rng, (n, BUMPS)), rng.uniform(2.0, 5.0, (n, BUMPS, 1)),
+                            rng.uniform(0, 2 * np.pi, (n, BUMPS, 1))], 2)
+    gap = max(params.gap / factor, FINAL_GAP)
+    centres = place_spheres(np.array(shape, np.float64), radii * a, params.exclusion,
+                            PLACE_ATTEMPTS, np.uint64(seed), wrap)
+    # size classes (halving radii), each searched within its own reach
+    extents = radii * a * (1 + params.bumps * math.sqrt(BUMPS))
+    level = np.floor(np.log2(radii.max() / radii)).astype(np.int64)
+    classes = np.searchsorted(level, np.arange(level.max() + 2), side="left")
+    reaches = np.array([extents[classes[k]] + gap + 1.0 for k in range(len(classes) - 1)])
+    owner = np.empty(shape, np.int32)
+    sdf = np.empty(shape, np.float32)
+    render_particles(np.array(shape, np.int64), centres, radii, extents,
+                     classes.astype(np.int64), reaches, frames, planes, bumps, params.bumps,
+                     gap, wrap, owner, sdf)
+    return Particles(owner, sdf, pick)
+
+
+def cut_stats(inside: np.ndarray, wrap: bool, count: int = PROBE_SLICES) -> ProfileStats:
+    """Profile statistics over axis slices and diagonal planes of a bool volume: diameters
+    pooled, fraction and shapes averaged (weighted by the profiles of each cut)."""
+    cuts = [s for _, _, s in axis_slices(inside, count)]
+    cuts += [oblique_slice(inside, n, wrap=wrap, nearest=True) for n in DIAGONALS]
+    return pooled([profile_stats(c.astype(np.int64), (1,), wrap and c.shape == inside.shape[1:])
+                   for c in cuts])
+
+
+def pooled(stats) -> ProfileStats:
+    """One ProfileStats for several cuts."""
+    counts = np.array([s.count for s in stats], np.float64)
+    w = counts if counts.sum() > 0 else np.ones(len(stats))
+    return ProfileStats(
+        fraction=float(np.mean([s.fraction for s in stats])), count=int(counts.sum()),
+        density=float(np.mean([s.density for s in stats])),
+        diameters=np.sort(np.concatenate([s.diameters for s in stats])),
+        solidity=float(np.average([s.solidity for s in stats], weights=w)),
+        elongation=float(np.average([s.elongation for s in stats], weights=w)))
+
+
+def initial_params(sources: ParticleSources) -> ParticleParams:
+    """A first guess: spheres 4/pi the profiles' size (a sphere's mean cut is pi/4 of its
+    diameter), as many as fill the exemplar's area fraction (Delesse: V_V = A_A); dense
+    materials (cells) fill their Laguerre cells and keep the exemplar's gap."""
+    t = sources.target
+    d = sources.diameters
+    mean_d = float(np.exp(np.log(d).mean()))
+    w = 1.0 / d
+    dense = t.fraction > DENSE
+    size = (4.0 / math.pi) * (1.6 if dense else 1.0)
+    r3 = float(np.average((0.5 * 4.0 / math.pi * mean_d * (d / mean_d) ** 0.8) ** 3,
+                          weights=w))
+    density = t.fraction / (0.7 * 4.0 / 3.0 * math.pi * r3)
+    gap = float(np.clip(sources.gap, MIN_GAP, MAX_GAP)) if dense else MIN_GAP
+    return ParticleParams(density=density, size=size, gap=gap, exclusion=0.6 if dense else 0.7)
+
+
+def _step(ratio: float, power: float) -> float:
+    """A damped multiplicative correction."""
+    return float(np.clip(ratio ** power, 1 / MAX_STEP, MAX_STEP))
+
+
+def _error(got: dict, want: dict) -> float:
+    """The largest relative error over the fitted figures."""
+    return max(abs(got[k] / want[k] - 1.0) for k in FITTED if want[k] > 0)
+
+
+def fit(sources: ParticleSources, seed: int, probe: int | None = None, log=None):
+    """(ParticleParams, the best probe's cut statistics): rounds of build, cut, measure, correct
+    on a periodic probe volume at the exemplar's scale; the round with the least error wins.
+    Sparse particles: size sets the diameters, the number the area fraction; dense ones
+    (cells): the number sets the diameters, the gap the fraction."""
+    tf = sources.target.figures()
+    if probe is None:
+        probe = int(np.clip(4 * max(tf["d90"], 8.0), 40, 72))
+    shape = (probe, probe, probe)
+    params = initial_params(sources)
+    dense = tf["fraction"] > DENSE
+    best = None
+    for round_ in range(FIT_ROUNDS):
+        built = build(shape, params, sources, seed + 7919 * round_, True)
+        stats = cut_stats(built.owner >= 0, True)
+        got = stats.figures()
+        error = _error(got, tf)
+        if log is not None:
+            log(round_, params, got)
+        if best is None or error < best[0]:
+            best = (error, params, stats)
+        if round_ == FIT_ROUNDS - 1:
+            break
+        size_ratio = math.sqrt(tf["diameter"] * tf["d90"]
+                               / max(got["diameter"] * got["d90"], 1e-6))
+        frac_ratio = tf["fraction"] / max(got["fraction"], 1e-6)
+        spread_ratio = (tf["d90"] / max(tf["d50"], 1e-6)) / max(
+            got["d90"] / max(got["d50"], 1e-6), 1e-6)
+        if dense:
+            density = params.density * _step(size_ratio, -1.8)
+            size = params.size
+            gap = float(np.clip(params.gap * _step(frac_ratio, -1.2), MIN_GAP, MAX_GAP))
+            if gap == MIN_GAP and frac_ratio > 1:
+                size = params.size * _step(frac_ratio, 0.4)
+        else:
+            size = params.size * _step(size_ratio, 0.7)
+            density = params.density * _step(frac_ratio * size_ratio ** -2.1, 1.0)
+            gap = params.gap
+        params = replace(
+            params, density=density, size=size, gap=gap,
+            spread=float(np.clip(params.spread * _step(spread_ratio, 0.8), 0.3, 1.3)),
+            aspect=float(np.clip(params.aspect * _step(tf["elongation"] / got["elongation"],
+                                                       1.2), 1.0, 4.0)),
+            bumps=float(np.clip(params.bumps + 0.4 * (got["solidity"] - tf["solidity"]),
+                                0.0, 0.25)))
+    return best[1], best[2]
