@@ -11,7 +11,7 @@ import dataclasses
 from dataclasses import dataclass
 
 from osmap_cli.batch import Job
-from osmap_cli.errors import OsmapError
+from osmap_cli.solid.job import check_exemplars, read_exemplars
 
 __all__ = ["AnalyseJob", "picture_name"]
 
@@ -50,26 +50,12 @@ class AnalyseJob(Job):
         return record
 
     def read(self) -> list:
-        from osmap_cli.imageio import read_image
-
-        cache = {}
-        for f in self.files:
-            if f not in cache:
-                cache[f] = read_image(f)
-        return [cache[f] for f in self.files]
+        return read_exemplars(self.files)
 
     def check(self, images) -> None:
-        import numpy as np
-
         from osmap_cli.solid import volumeio
 
-        if len({im.pixels.shape[2] for im in images}) != 1:
-            raise OsmapError("per-axis exemplars need the same number of channels")
-        for name, im in zip(self.files, images):
-            if min(im.pixels.shape[:2]) < 8:
-                raise OsmapError(f"{name}: exemplar is smaller than 8x8 pixels")
-            if not np.all(np.isfinite(im.pixels)):
-                raise OsmapError(f"{name}: the exemplar has NaN or infinite pixel values")
+        check_exemplars(self.files, images)
         volumeio.check_target(self.output, "png")
 
     def compute(self, images):

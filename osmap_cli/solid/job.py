@@ -70,29 +70,13 @@ class SolidJob(Job):
         return record
 
     def read(self) -> list:
-        from osmap_cli.imageio import read_image
-
-        cache = {}
-        for f in self.files:
-            if f not in cache:
-                cache[f] = read_image(f)
-        return [cache[f] for f in self.files]
+        return read_exemplars(self.files)
 
     def check(self, images) -> None:
-        import numpy as np
-
         from osmap_cli.memory import check_memory, structure_bytes, volume_bytes
         from osmap_cli.solid import volumeio
 
-        channels = {im.pixels.shape[2] for im in images}
-        if len(channels) != 1:
-            counts = ", ".join(f"{n}: {im.pixels.shape[2]}" for n, im in zip(self.files, images))
-            raise OsmapError(f"per-axis exemplars need the same number of channels ({counts})")
-        for name, im in zip(self.files, images):
-            if min(im.pixels.shape[:2]) < 8:
-                raise OsmapError(f"{name}: exemplar is smaller than 8x8 pixels")
-            if not np.all(np.isfinite(im.pixels)):
-                raise OsmapError(f"{name}: the exemplar has NaN or infinite pixel values")
+        check_exemplars(self.files, images)
         volumeio.check_target(self.output, self.kind)
         count = images[0].pixels.shape[2]
         if self.kind in ("png", "atlas") and count > 4:
@@ -156,3 +140,28 @@ class SolidJob(Job):
         if self.verbose and result.report:
             line = "\n".join([*result.report, line])
         return line, []
+
+
+def read_exemplars(files) -> list:
+    """The images of FILES in order, each distinct file read once."""
+    from osmap_cli.imageio import read_image
+
+    cache = {}
+    for f in files:
+        if f not in cache:
+            cache[f] = read_image(f)
+    return [cache[f] for f in files]
+
+
+def check_exemplars(files, images) -> None:
+    """OsmapError unless the exemplars share a channel count, are 8x8 or larger and finite."""
+    import numpy as np
+
+    if len({im.pixels.shape[2] for im in images}) != 1:
+        counts = ", ".join(f"{n}: {im.pixels.shape[2]}" for n, im in zip(files, images))
+        raise OsmapError(f"per-axis exemplars need the same number of channels ({counts})")
+    for name, im in zip(files, images):
+        if min(im.pixels.shape[:2]) < 8:
+            raise OsmapError(f"{name}: exemplar is smaller than 8x8 pixels")
+        if not np.all(np.isfinite(im.pixels)):
+            raise OsmapError(f"{name}: the exemplar has NaN or infinite pixel values")
