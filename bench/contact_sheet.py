@@ -148,8 +148,8 @@ def write_jpeg(buf: oiio.ImageBuf, path: Path, log=print) -> Path:
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}.jpg")
     out = oiio.ImageBuf(buf.spec())
     oiio.ImageBufAlgo.copy(out, buf, oiio.UINT8)
-    for quality in (92, 90, 88, 86, 84, 82, 80, 78, 76, 74, 72, 70, 65, 60):
-        out.specmod().attribute("Compression", f"jpeg:{quality}")
+    for jpeg_quality in (92, 90, 88, 86, 84, 82, 80, 78, 76, 74, 72, 70, 65, 60):
+        out.specmod().attribute("Compression", f"jpeg:{jpeg_quality}")
         if not out.write(str(tmp), oiio.UINT8):
             raise RuntimeError(f"could not write {path}: {out.geterror()}")
         size = tmp.stat().st_size
@@ -157,7 +157,7 @@ def write_jpeg(buf: oiio.ImageBuf, path: Path, log=print) -> Path:
             break
     os.replace(tmp, path)
     log(f"wrote {common.rel(path)}: {out.spec().width}x{out.spec().height}, JPEG quality "
-        f"{quality}, {size / 1e6:.2f} MB")
+        f"{jpeg_quality}, {size / 1e6:.2f} MB")
     return path
 
 

@@ -131,8 +131,8 @@ def test_memory_guard_refuses_with_the_amount(run_cli, exemplar, tmp_path, monke
                      "--preview", tmp_path / "p.png")
     assert result.code == 1
     assert len(result.err_lines) == 1 and re.fullmatch(
-        r"osmap: error: a 512x512x512 volume needs about \d+\.\d GiB of memory, but only 100\.0 MiB "
-        r"is available \(limited by OSMAP_MEMORY_LIMIT\); use a smaller --size",
+        r"osmap: error: a 512x512x512 volume needs about \d+\.\d GiB of memory, but only "
+        r"100\.0 MiB is available \(limited by OSMAP_MEMORY_LIMIT\); use a smaller --size",
         result.err_lines[0]), result.err
     assert list(tmp_path.iterdir()) == []
 
