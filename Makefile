@@ -34,7 +34,7 @@ $(STAMP): pyproject.toml
 	@touch $@
 
 # `pip install .` ships kernels compiled for any CPU of this kind (buildhook/osmap_build.py); the
-# editable install of $(VENV) does not, so demo builds them for this tree (about 40 s on two
+# editable install of $(VENV) does not, so demo builds them for this tree (about 60 s on two
 # cores; again only when a kernel changed), then times each synthesis (the first one is the
 # first run after the install).
 TIMED = $(PY) -c "import subprocess, sys, time; t = time.perf_counter(); code = subprocess.call(sys.argv[1:]); print(f'demo: {sys.argv[3]} -> {sys.argv[5]} in {time.perf_counter() - t:.1f} s', file=sys.stderr); sys.exit(code)"
