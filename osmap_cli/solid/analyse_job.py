@@ -53,10 +53,10 @@ class AnalyseJob(Job):
         return read_exemplars(self.files)
 
     def check(self, images) -> None:
-        from osmap_cli.solid import volumeio
+        from osmap_cli.image_formats import output_format
 
         check_exemplars(self.files, images)
-        volumeio.check_target(self.output, "png")
+        output_format(self.output, 8, 3)
 
     def compute(self, images):
         import numpy as np
