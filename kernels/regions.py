@@ -130,7 +130,7 @@ def copy_region_ids(pos, jac, wrap, tol=COPY_TOL):
     return ids, count
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def copy_region_areas(pos, jac, wrap):
     """Area of the verbatim-copy region around every pixel (see copy_region_labels).
     float32[H, W]."""
@@ -409,7 +409,7 @@ def _region_starts(regions):
     return starts, longest
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def align_regions(pos, feat, jac, p):
     """Move whole copy regions, one at a time in label order, by the shift within p.reach that
     most lowers the matching and seam cost of their borders (none if no shift does). A shift
