@@ -19,6 +19,32 @@ def vote_image(image, pos, jac, radius, wrap):
     return out
 
 
+@njit(cache=True, inline="always")
+def _one_copy(pos, jac, y, x, radius, wrap):
+    """Whether every neighbour q of (y, x) within radius votes for the pixel's own position
+    (pos[q] - J[q] (q - p) == pos[p], in _vote_rows' arithmetic): p lies inside one copy."""
+    H, W = pos.shape[0], pos.shape[1]
+    py, px = np.float64(pos[y, x, 0]), np.float64(pos[y, x, 1])
+    for dy in range(-radius, radius + 1):
+        for dx in range(-radius, radius + 1):
+            qy, qx, inside = neighbour(y, x, dy, dx, H, W, wrap)
+            if not inside:
+                continue
+            J = jac[qy, qx]
+            if (pos[qy, qx, 0] - (J[0, 0] * dy + J[0, 1] * dx) != py
+                    or pos[qy, qx, 1] - (J[1, 0] * dy + J[1, 1] * dx) != px):
+                return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def _finite(values):
+    for c in range(values.shape[0]):
+        if not np.isfinite(values[c]):
+            return False
+    return True
+
+
 @njit(cache=True, nogil=True)
 def _vote_rows(image, pos, jac, radius, wrap, out, y0, y1):
     """vote_image's rows y0 <= y < y1, written into out."""
@@ -36,6 +62,11 @@ def _vote_rows(image, pos, jac, radius, wrap, out, y0, y1):
     for y in range(y0, y1):
         for x in range(W):
             sample(image, pos[y, x, 0], pos[y, x, 1], centre)
+            if _one_copy(pos, jac, y, x, radius, wrap) and _finite(centre):
+                # every vote samples where the pixel does: they all agree (see below)
+                for c in range(C):
+                    out[y, x, c] = centre[c]
+                continue
             acc[:] = 0.0
             total = 0.0
             agree = True
