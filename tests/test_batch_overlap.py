@@ -29,6 +29,7 @@ class _Meet(Job):
     target: str
     meeting: object = None
     fails: bool = False
+    stops: bool = False  # its compute raises KeyboardInterrupt, as a latched Ctrl-C does
     replace: bool = True
     refused: str | None = None
     progress: bool = False
@@ -49,6 +50,8 @@ class _Meet(Job):
     def compute(self, inputs):
         if self.meeting is not None:
             self.meeting.wait()
+        if self.stops:
+            raise KeyboardInterrupt
         return threading.current_thread().name
 
     def stage(self, outputs, inputs, result):
@@ -107,6 +110,17 @@ def test_fail_fast_commits_nothing_after_the_first_failure(tmp_path, capsys):
     assert "1 failed, 3 not run (--fail-fast)" in err.splitlines()[-1]
     assert not os.listdir(tmp_path)
     assert not [t for t in threading.enumerate() if t.name == "osmap-job"]
+
+
+def test_a_stop_in_a_job_computed_ahead_stops_the_batch_there(tmp_path):
+    """Ctrl-C seen in a job computed in the other thread: the jobs before it are committed,
+    it and those after are not, and the stop reaches the caller as itself."""
+    jobs = [_Meet("a.png", str(tmp_path / "a.txt")), _Meet("b.png", str(tmp_path / "b.txt")),
+            _Meet("c.png", str(tmp_path / "c.txt"), stops=True),
+            _Meet("d.png", str(tmp_path / "d.txt"))]
+    with pytest.raises(KeyboardInterrupt):
+        run_jobs(jobs, quiet=True)
+    assert sorted(os.listdir(tmp_path)) == ["a.txt", "b.txt"]
 
 
 def test_a_synth_batch_writes_the_bytes_of_separate_runs(run_cli, twenty, tmp_path):
