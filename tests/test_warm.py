@@ -291,21 +291,3 @@ for _ in range(600):
 print(off, gc.isenabled())
 """
     assert _python(code) == "True True"
-
-
-def test_background_loads_take_the_cached_kernels_and_compile_none():
-    code = """
-import threading
-from osmap_cli.synth import warm
-warm.load_in_background()
-warm.load_in_background()  # once per process
-loaders = [t for t in threading.enumerate() if t.name == "osmap-kernel-loads"]
-for t in loaders:
-    t.join()
-kernels = [d for group in ("organise", "refine") for d, _ in warm._dispatchers(group)]
-loaded = all(len(d.overloads) == 1 for d in kernels)
-missed = sum(sum(d.stats.cache_misses.values()) for d in kernels)
-print(len(loaders), loaded, missed)
-"""
-    # one signature each (the OS-Map training's general one only), none compiled
-    assert _python(code) == "1 True 0"

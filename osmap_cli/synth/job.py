@@ -216,11 +216,10 @@ class SynthJob(Job):
     def compute(self, inputs: _Inputs):
         from osmap_cli import synth
         from osmap_cli.progress import ProgressBar
-        from osmap_cli.synth.warm import ensure_compiled, load_in_background
+        from osmap_cli.synth.warm import ensure_compiled
 
         # a first run compiles the kernels (two processes at once) and says so, unless --quiet
         ensure_compiled(None if self.quiet else announce)
-        load_in_background()
 
         with ProgressBar(enabled=self.progress, desc=self.label) as progress:
             if inputs.also:

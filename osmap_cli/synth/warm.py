@@ -19,7 +19,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import threading
 
 # CPU seconds to compile each group from an empty cache (BENCHMARKS.md, "Compile"; refine with
 # the kernels it shares with organise cached, as in a first run): the announcement's estimate.
@@ -111,58 +110,6 @@ def ensure_compiled(announce=None) -> bool:
     finally:
         if handle is not None:
             handle.close()
-
-
-def load_in_background() -> None:
-    """Load the synth kernels' cached machine code for this CPU in a background thread, the
-    OS-Map training's first: the loads (Python and LLVM work, about 0.07 CPU s) then overlap
-    the exemplar's analysis and the training (which releases the GIL) instead of following
-    them. Only what the cache holds for this CPU is loaded, never compiled (a kernel missing
-    there compiles on its first call, as before); once per process; only on the Numba
-    versions osmap_kernels.cacheload was checked against."""
-    import numba
-
-    from osmap_kernels.cacheload import QUICK_LOADS_CHECKED
-
-    with _LOADS_LOCK:
-        if _loads_started:
-            return
-        _loads_started.append(True)
-    if (not numba.__version__.startswith(QUICK_LOADS_CHECKED)
-            or os.environ.get("NUMBA_DISABLE_JIT") == "1"):
-        return
-    threading.Thread(target=_load_cached_kernels, name="osmap-kernel-loads",
-                     daemon=True).start()
-
-
-_LOADS_LOCK = threading.Lock()
-_loads_started: list = []  # not empty once load_in_background has run in this process
-
-
-def _load_cached_kernels() -> None:
-    from numba.core import sigutils
-    from numba.core.compiler_lock import global_compiler_lock
-
-    kernels = [k for group in ("organise", "refine") for k in _dispatchers(group)]
-    for dispatcher, accept in sorted(kernels, key=lambda k: k[0].__name__ != "_train"):
-        try:
-            cache = dispatcher._cache
-            target = dispatcher.targetctx.codegen().magic_tuple()
-            keys = [key for key in cache._cache_file._load_index()
-                    if key[1] == target and (accept is None or accept(key[0]))]
-            for key in keys:
-                with global_compiler_lock:  # as Dispatcher.compile loads a cached entry
-                    args, _ = sigutils.normalize_signature(key[0])
-                    if tuple(args) in dispatcher.overloads:
-                        continue
-                    cres = cache.load_overload(key[0], dispatcher.targetctx)
-                    if cres is None or cres.objectmode:
-                        continue
-                    dispatcher.targetctx.insert_user_function(cres.entry_point, cres.fndesc,
-                                                              [cres.library])
-                    dispatcher.add_overload(cres)
-        except Exception:  # noqa: BLE001 - the kernel then loads on its first call
-            continue
 
 
 def _compile(groups: list[str], workers: int) -> None:
