@@ -23,18 +23,25 @@ def vote_image(image, pos, jac, radius, wrap):
 def _one_copy(pos, jac, y, x, radius, wrap):
     """Whether every neighbour q of (y, x) within radius votes for the pixel's own position
     (pos[q] - J[q] (q - p) == pos[p], in _vote_rows' arithmetic): p lies inside one copy."""
-    H, W = pos.shape[0], pos.shape[1]
     py, px = np.float64(pos[y, x, 0]), np.float64(pos[y, x, 1])
     for dy in range(-radius, radius + 1):
         for dx in range(-radius, radius + 1):
-            qy, qx, inside = neighbour(y, x, dy, dx, H, W, wrap)
-            if not inside:
-                continue
-            J = jac[qy, qx]
-            if (pos[qy, qx, 0] - (J[0, 0] * dy + J[0, 1] * dx) != py
-                    or pos[qy, qx, 1] - (J[1, 0] * dy + J[1, 1] * dx) != px):
+            inside, sy, sx = _vote(pos, jac, y, x, dy, dx, wrap)
+            if inside and (sy != py or sx != px):
                 return False
     return True
+
+
+@njit(cache=True, inline="always")
+def _vote(pos, jac, y, x, dy, dx, wrap):
+    """(inside, sy, sx): where neighbour (y + dy, x + dx) puts pixel (y, x) in the exemplar, its
+    position carried back by its Jacobian; inside False off a non-wrapping edge."""
+    qy, qx, inside = neighbour(y, x, dy, dx, pos.shape[0], pos.shape[1], wrap)
+    if not inside:
+        return False, 0.0, 0.0
+    J = jac[qy, qx]
+    return (True, pos[qy, qx, 0] - (J[0, 0] * dy + J[0, 1] * dx),
+            pos[qy, qx, 1] - (J[1, 0] * dy + J[1, 1] * dx))
 
 
 @njit(cache=True, inline="always")
@@ -48,7 +55,7 @@ def _finite(values):
 @njit(cache=True, nogil=True)
 def _vote_rows(image, pos, jac, radius, wrap, out, y0, y1):
     """vote_image's rows y0 <= y < y1, written into out."""
-    H, W = pos.shape[0], pos.shape[1]
+    W = pos.shape[1]
     C = image.shape[2]
     sigma = max(0.6 * radius, 0.5)
     side = 2 * radius + 1
@@ -72,12 +79,9 @@ def _vote_rows(image, pos, jac, radius, wrap, out, y0, y1):
             agree = True
             for dy in range(-radius, radius + 1):
                 for dx in range(-radius, radius + 1):
-                    qy, qx, inside = neighbour(y, x, dy, dx, H, W, wrap)
+                    inside, sy, sx = _vote(pos, jac, y, x, dy, dx, wrap)
                     if not inside:
                         continue
-                    J = jac[qy, qx]
-                    sy = pos[qy, qx, 0] - (J[0, 0] * dy + J[0, 1] * dx)
-                    sx = pos[qy, qx, 1] - (J[1, 0] * dy + J[1, 1] * dx)
                     weight = weights[dy + radius, dx + radius]
                     sample(image, sy, sx, buf)
                     for c in range(C):
