@@ -130,7 +130,7 @@ def copy_region_ids(pos, jac, wrap, tol=COPY_TOL):
     return ids, count
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def copy_region_areas(pos, jac, wrap):
     """Area of the verbatim-copy region around every pixel (see copy_region_labels).
     float32[H, W]."""
@@ -298,12 +298,33 @@ def _shifts_by_length(reach):
 
 
 @njit(cache=True, inline="always")
-def _best_shift(feat, fixed, base, target, merges, shifts, lo_pos, hi_pos, p):
+def _seam_part(target, merges, sy, sx, seam):
+    """The seam terms of shift (sy, sx) of a moved region, added in _shift_cost's order; inf
+    for a forbidden merge."""
+    total = 0.0
+    for m in range(target.shape[0]):
+        if abs(sy - target[m, 0]) > 1e-3 or abs(sx - target[m, 1]) > 1e-3:
+            total += seam
+        elif merges[m]:
+            return np.inf
+    return total
+
+
+@njit(cache=True, inline="always")
+def _best_shift(feat, fixed, base, target, merges, shifts, lo_pos, hi_pos, p, live, totals,
+                fetched):
     """Index into shifts of the cheapest shift that keeps the region's positions (extent lo_pos
-    to hi_pos) inside [p.lo, p.hi]; 0 (no shift) unless another is strictly cheaper."""
-    best = 0
+    to hi_pos) inside [p.lo, p.hi]; 0 (no shift) unless another is strictly cheaper.
+
+    Every shift's cost is summed term by term in _shift_cost's order (the same float64 sums),
+    but the shifts advance together, one border term at a time: their sums are independent
+    chains the processor overlaps, where one shift after another waits on each addition. A
+    shift drops out once its sum reaches the unshifted cost, which it then cannot beat; the
+    smallest index wins a tie, as when the shifts are tried one by one. `live`, `totals` and
+    `fetched` are scratch arrays (a shift each; the feature count)."""
     zero = np.int64(0)  # not a literal 0: that would compile _shift_cost a second time
-    best_cost = _shift_cost(feat, fixed, base, target, merges, zero, zero, p.seam, np.inf)
+    unshifted = _shift_cost(feat, fixed, base, target, merges, zero, zero, p.seam, np.inf)
+    n_live = 0
     for j in range(1, shifts.shape[0]):
         sy, sx = shifts[j, 0], shifts[j, 1]
         if (lo_pos[0] + sy < p.lo[0] or hi_pos[0] + sy > p.hi[0]
@@ -311,9 +332,44 @@ def _best_shift(feat, fixed, base, target, merges, shifts, lo_pos, hi_pos, p):
             continue
         if p.lattice.rank != 0 and not lattice_shift_ok(sy, sx, p.lattice):
             continue
-        cost = _shift_cost(feat, fixed, base, target, merges, sy, sx, p.seam, best_cost)
-        if cost < best_cost:
-            best, best_cost = j, cost
+        total = _seam_part(target, merges, sy, sx, p.seam)
+        if total < unshifted:
+            live[n_live] = j
+            totals[n_live] = total
+            n_live += 1
+    h, w, nf = feat.shape
+    n = 0
+    while n_live > 0 and n < fixed.shape[0]:
+        by, bx = base[n, 0], base[n, 1]
+        exact = by == np.floor(by) and bx == np.floor(bx)  # integer shifts: sample's fetch
+        for k in range(n_live):
+            sy, sx = shifts[live[k], 0], shifts[live[k], 1]
+            total = totals[k]
+            if exact:
+                y0 = min(max(int(by) + sy, 0), h - 1)
+                x0 = min(max(int(bx) + sx, 0), w - 1)
+                for f in range(nf):
+                    diff = np.float64(fixed[n, f]) - np.float64(feat[y0, x0, f])
+                    total += diff * diff
+            else:
+                sample(feat, by + sy, bx + sx, fetched)
+                for f in range(nf):
+                    diff = fixed[n, f] - fetched[f]
+                    total += diff * diff
+            totals[k] = total
+        kept = 0
+        for k in range(n_live):  # in order: the earlier of two equal shifts stays first
+            if totals[k] < unshifted:
+                live[kept] = live[k]
+                totals[kept] = totals[k]
+                kept += 1
+        n_live = kept
+        n += 1
+    best = 0
+    best_cost = unshifted
+    for k in range(n_live):
+        if totals[k] < best_cost:
+            best, best_cost = live[k], totals[k]
     return best
 
 
@@ -353,7 +409,7 @@ def _region_starts(regions):
     return starts, longest
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def align_regions(pos, feat, jac, p):
     """Move whole copy regions, one at a time in label order, by the shift within p.reach that
     most lowers the matching and seam cost of their borders (none if no shift does). A shift
@@ -376,13 +432,16 @@ def align_regions(pos, feat, jac, p):
     members, member_starts = _stable_order(labels.ravel(), count)  # pixels by region
     shifts = _shifts_by_length(p.reach)
     terms = _scratch(longest, p.radius, feat.shape[2])
+    live = np.empty(shifts.shape[0], np.int64)
+    totals = np.empty(shifts.shape[0])
+    fetched = np.empty(feat.shape[2])
     for i in range(starts.shape[0] - 1):
         region = regions[starts[i]]
         border = pixels[starts[i]:starts[i + 1]]
         fixed, base, target, merges, others = _border_terms(pos, labels, group, area, feat, jac,
                                                             border, region, p, terms)
         j = _best_shift(feat, fixed, base, target, merges, shifts, lo_pos[region],
-                        hi_pos[region], p)
+                        hi_pos[region], p, live, totals, fetched)
         if j == 0:
             continue
         sy, sx = shifts[j, 0], shifts[j, 1]

@@ -695,7 +695,7 @@ def is_classic(p) -> bool:
                 and np.all(p.hi == np.inf) and np.all(p.jac == 0.0))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _train(weights, inputs, origins, alphas, sigmas, p, b, bucket_from, classic):
     """`train_steps`, with `update_classic` when `classic` is True and `update_neighbourhood`
     when it is None. A None argument is a compile-time constant: Numba prunes the classic branch

@@ -57,27 +57,38 @@ class Job:
         line and any warnings."""
         raise NotImplementedError
 
-    def execute(self) -> tuple[str, list[str]]:
-        """read -> check -> compute -> stage -> commit; returns the summary line and warnings.
-        Raises OsmapError for a bad input or output (then nothing is written)."""
-        from osmap_cli.output import Outputs
+    # Jobs of this kind may compute two at a time in threads of one process (run_jobs, -j 1):
+    # their kernels release the GIL and may run in two threads at once, and two of them fit in
+    # memory side by side. A subclass decides per job.
+    overlaps = False
 
+    def prepare(self):
+        """read -> check -> compute: (inputs, result), nothing written yet."""
         inputs = self.read()
         self.check(inputs)
-        result = self.compute(inputs)
+        return inputs, self.compute(inputs)
+
+    def execute(self, ahead=None) -> tuple[str, list[str]]:
+        """read -> check -> compute -> stage -> commit; returns the summary line and warnings.
+        Raises OsmapError for a bad input or output (then nothing is written). AHEAD: this
+        job's prepare() run earlier in another thread (see _Ahead), or None."""
+        from osmap_cli.output import Outputs
+
+        prepared = None if ahead is None else ahead.result()
+        inputs, result = self.prepare() if prepared is None else prepared
         with Outputs() as outputs:
             line, warnings = self.stage(outputs, inputs, result)
             outputs.commit()
         return line, warnings
 
-    def run(self) -> dict:
+    def run(self, ahead=None) -> dict:
         """execute() unless the job is skipped or refused; returns the job's record (status
         "ok" or "skipped"). Raises OsmapError for a bad input or output."""
-        started = time.monotonic()
+        started = time.monotonic() if ahead is None else ahead.started
         skipped = skip_or_refuse(self, started)
         if skipped is not None:
             return skipped
-        line, warnings = self.execute()
+        line, warnings = self.execute(ahead)
         record = job_record(self, "ok", started)
         record["_line"] = f"{line} ({record['seconds']:.1f} s)"
         record["_warnings"] = warnings
@@ -167,12 +178,7 @@ def run_jobs(jobs: list, workers: int = 1, fail_fast: bool = False,
 
         not_run = run_cluster(jobs, cluster, fail_fast, debug, report)
     elif workers <= 1 or len(jobs) == 1:
-        for position, job in enumerate(jobs):
-            record = run_caught(job, debug)
-            report(record)
-            if fail_fast and record["status"] == "failed":
-                not_run = len(jobs) - position - 1
-                break
+        not_run = _run_in_turn(jobs, fail_fast, debug, report)
     else:
         not_run = _run_pool(jobs, workers, fail_fast, debug, report)
     failed = report.counts["failed"]
@@ -184,6 +190,103 @@ def run_jobs(jobs: list, workers: int = 1, fail_fast: bool = False,
         _say(f"osmap: {len(jobs)} jobs: {', '.join(parts)} "
              f"({time.monotonic() - started:.1f} s)", err=True)
     return 1 if failed else 0
+
+
+def _run_in_turn(jobs: list, fail_fast: bool, debug: bool, report) -> int:
+    """Run the jobs in this process, committing and reporting them in order; returns how many
+    were not run (--fail-fast). When every job overlaps (Job.overlaps) and there are two cores,
+    two jobs compute at a time (_Ahead): one job's single-threaded stages use the core that
+    the other's row bands leave free. Each job computes the same bytes either way."""
+    ahead = None
+    if len(jobs) > 1 and (os.cpu_count() or 1) > 1 and all(job.overlaps for job in jobs):
+        ahead = _Ahead(jobs)
+    try:
+        for position, job in enumerate(jobs):
+            record = run_caught(job, debug, None if ahead is None else ahead.take(position))
+            report(record)
+            if fail_fast and record["status"] == "failed":
+                return len(jobs) - position - 1
+    except BaseException:
+        if ahead is not None:
+            ahead.close(wait=False)
+        ahead = None
+        raise
+    finally:
+        if ahead is not None:
+            ahead.close(wait=True)
+    return 0
+
+
+class _Ahead:
+    """The jobs' prepare() (read, check, compute) on THREADS threads of this process, started
+    in order and at most DEPTH jobs past the one the caller takes last (held results bound the
+    memory); the caller takes each job's outcome in order and stages and commits it itself."""
+
+    def __init__(self, jobs: list, threads: int = 2, depth: int = 2):
+        import threading
+
+        self._jobs, self._depth = jobs, depth
+        self._cond = threading.Condition()
+        self._next = 0  # the next job to start
+        self._limit = depth  # jobs below this index may start
+        self._done: dict = {}  # index -> _Prepared
+        self._closed = False
+        self._threads = [threading.Thread(target=self._work, name="osmap-job", daemon=True)
+                         for _ in range(threads)]
+        for thread in self._threads:
+            thread.start()
+
+    def _work(self) -> None:
+        while True:
+            with self._cond:
+                while not self._closed and self._next >= min(self._limit, len(self._jobs)):
+                    self._cond.wait()
+                if self._closed:
+                    return
+                index = self._next
+                self._next += 1
+            prepared = _Prepared(self._jobs[index])
+            with self._cond:
+                self._done[index] = prepared
+                self._cond.notify_all()
+
+    def take(self, index: int) -> _Prepared:
+        """Job INDEX's outcome (waits for it); lets the jobs DEPTH past it start."""
+        with self._cond:
+            self._limit = max(self._limit, index + 1 + self._depth)
+            self._cond.notify_all()
+            while index not in self._done:
+                self._cond.wait()
+            return self._done.pop(index)
+
+    def close(self, wait: bool) -> None:
+        """Start no more jobs; WAIT: for those running to end (their outcomes are dropped)."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+        if wait:
+            for thread in self._threads:
+                thread.join()
+
+
+class _Prepared:
+    """One job's prepare() run now (in an _Ahead thread): its time of start and its outcome,
+    None when the job is to be skipped or refused (Job.run decides that again)."""
+
+    def __init__(self, job):
+        self.started = time.monotonic()
+        self._outcome, self._error = None, None
+        try:
+            if not job.refused and skip_or_refuse(job, self.started) is None:
+                self._outcome = job.prepare()
+        except BaseException as exc:  # noqa: BLE001 - raised again in the caller's thread
+            self._error = exc
+
+    def result(self):
+        """(inputs, result) of job.prepare(), None if it did not run; raises its error."""
+        if self._error is not None:
+            raise self._error
+        return self._outcome
 
 
 def _run_pool(jobs: list, workers: int, fail_fast: bool, debug: bool, report) -> int:

@@ -37,12 +37,13 @@ def failed_record(job, message: str, started: float, internal: bool = False) -> 
     return record
 
 
-def run_caught(job, debug: bool = False) -> dict:
+def run_caught(job, debug: bool = False, ahead=None) -> dict:
     """job.run(), with every failure turned into a "failed" record (for batches and workers);
-    DEBUG keeps the traceback of an unexpected error in the record."""
+    DEBUG keeps the traceback of an unexpected error in the record; AHEAD: the job's work
+    done earlier in another thread (osmap_cli.batch), passed on to job.run."""
     started = time.monotonic()
     try:
-        return job.run()
+        return job.run() if ahead is None else job.run(ahead)
     except OsmapError as exc:
         return failed_record(job, str(exc), started)
     except Exception as exc:  # noqa: BLE001 - one broken job must not stop the batch

@@ -22,6 +22,10 @@ from osmap_cli.imageio import output_depth
 
 __all__ = ["SynthJob", "UV_DESCRIPTION", "map_renderer", "synth_args"]
 
+# the largest output (pixels) of a job that computes beside another (batch.Job.overlaps): at
+# about 45 bytes a pixel (docs/performance.md, "Memory") two of them add some 400 MiB at most
+OVERLAP_PIXELS = 2048 * 2048
+
 UV_DESCRIPTION = ("u = exemplar column (x), v = exemplar row (y), in exemplar pixels; "
                   "(0, 0) is the centre of the top-left exemplar pixel")
 
@@ -125,6 +129,15 @@ class SynthJob(Job):
     quiet: bool = False
     verbose: bool = False  # the summary also says what the analysis found (the lattice)
     label: str = "osmap synth"
+
+    @property
+    def overlaps(self) -> bool:
+        """Whether this job may compute beside another in one process (osmap_cli.batch): its
+        kernels release the GIL, but not with a progress bar (one bar at a time), nor above
+        OVERLAP_PIXELS, nor when its size comes from its input (a job that overrides sized:
+        its memory is not known before it is read)."""
+        return (not self.progress and type(self).sized is SynthJob.sized
+                and self.options.width * self.options.height <= OVERLAP_PIXELS)
 
     @property
     def outputs(self) -> list[str]:
