@@ -17,3 +17,14 @@ if _os.environ.get("OSMAP_QUICK_LOADS") == "1":
 from osmap_kernels.cacheload import start_up_done as _start_up_done  # noqa: E402
 
 _start_up_done()
+
+
+def parallel_launches_threadsafe() -> bool:
+    """Whether two Python threads may run parallel kernels at once: Numba's omp and tbb
+    threading layers allow it; its workqueue layer (taken when neither an OpenMP nor a TBB
+    runtime is found) aborts the process when they do."""
+    import numba
+    from numba.np.ufunc.parallel import _launch_threads
+
+    _launch_threads()  # picks the layer now, as the first parallel kernel would
+    return numba.threading_layer() in ("omp", "tbb")

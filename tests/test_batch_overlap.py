@@ -8,6 +8,8 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import subprocess
+import sys
 import threading
 from pathlib import Path
 
@@ -143,8 +145,27 @@ def test_which_synth_jobs_overlap(tmp_path):
         return SynthJob(index=1, exemplar="a.png", output=str(tmp_path / "b.png"),
                         preset="default", preset_values={}, **fields)
 
-    assert job().overlaps
+    from osmap_kernels import parallel_launches_threadsafe
+
+    assert job().overlaps == parallel_launches_threadsafe()
     assert not job(progress=True).overlaps  # one progress bar at a time
     side = int(OVERLAP_PIXELS ** 0.5) + 1
     big = job(options=SynthOptions(width=side, height=side))
     assert not big.overlaps
+
+
+def test_no_overlap_when_the_threading_layer_is_not_threadsafe(tmp_path, monkeypatch):
+    """Numba's workqueue layer aborts the process when two threads launch parallel kernels."""
+    import osmap_kernels
+    from osmap_cli.synth.job import SynthJob
+    from osmap_cli.synth.options import SynthOptions
+
+    job = SynthJob(index=1, exemplar="a.png", output=str(tmp_path / "b.png"), preset="default",
+                   preset_values={}, options=SynthOptions())
+    monkeypatch.setattr(osmap_kernels, "parallel_launches_threadsafe", lambda: False)
+    assert not job.overlaps
+    code = "import osmap_kernels; print(osmap_kernels.parallel_launches_threadsafe())"
+    env = {**os.environ, "NUMBA_THREADING_LAYER": "workqueue"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "False"

@@ -135,9 +135,15 @@ class SynthJob(Job):
         """Whether this job may compute beside another in one process (osmap_cli.batch): its
         kernels release the GIL, but not with a progress bar (one bar at a time), nor above
         OVERLAP_PIXELS, nor when its size comes from its input (a job that overrides sized:
-        its memory is not known before it is read)."""
-        return (not self.progress and type(self).sized is SynthJob.sized
-                and self.options.width * self.options.height <= OVERLAP_PIXELS)
+        its memory is not known before it is read), nor when Numba's threading layer cannot
+        take parallel kernels from two threads at once."""
+        if self.progress or type(self).sized is not SynthJob.sized:
+            return False
+        if self.options.width * self.options.height > OVERLAP_PIXELS:
+            return False
+        from osmap_kernels import parallel_launches_threadsafe
+
+        return parallel_launches_threadsafe()
 
     @property
     def outputs(self) -> list[str]:
