@@ -246,6 +246,48 @@ def kopf_average(pos, centre_weight, images, ex_of_axis, pixel_weight, p, out, s
 
 
 @njit(cache=True, parallel=True)
+def kopf_average_labelled(pos, centre_weight, images, ex_of_axis, pixel_weight, p, ex_labels,
+                          vol_labels, mismatch, out, source):
+    """kopf_average with the structure as a constraint: a proposal whose exemplar pixel's label
+    (ex_labels int32 (E, H, W)) differs from the voxel's (vol_labels int32 (Z, Y, X)) weighs
+    `mismatch` times as much (0 < mismatch <= 1), so a voxel of a 1-voxel gap takes gap colours
+    whenever one covering window offers them, however many windows put stone there."""
+    nz, ny, nx = out.shape[0], out.shape[1], out.shape[2]
+    shape = (nz, ny, nx)
+    n = p.size
+    nc = out.shape[3]
+    s = p.stride
+    most = 3 * (n // s + 1) * (n // s + 1)
+    for z in prange(nz):
+        acc = np.empty(nc, np.float64)
+        cand = np.empty((most, 8), np.int64)
+        for y in range(ny):
+            for x in range(nx):
+                acc[:] = 0.0
+                wsum = 0.0
+                wbest = -1.0
+                sa, sr, sc = 0, 0, 0
+                own = vol_labels[z, y, x]
+                for j in range(_covering(z, y, x, pos, shape, n, s, p.wrap, cand)):
+                    a, er, ec = cand[j, 0], cand[j, 1], cand[j, 2]
+                    e = ex_of_axis[a]
+                    w = (centre_weight[a, cand[j, 5], cand[j, 6], cand[j, 7]]
+                         * p.window[cand[j, 3], cand[j, 4]] * pixel_weight[e, er, ec])
+                    if ex_labels[e, er, ec] != own:
+                        w *= mismatch
+                    for ch in range(nc):
+                        acc[ch] += w * images[e, er, ec, ch]
+                    wsum += w
+                    if w > wbest:
+                        wbest, sa, sr, sc = w, a, er, ec
+                for ch in range(nc):
+                    out[z, y, x, ch] = acc[ch] / wsum if wsum > 0 else 0.0
+                source[z, y, x, 0] = sa
+                source[z, y, x, 1] = sr
+                source[z, y, x, 2] = sc
+
+
+@njit(cache=True, parallel=True)
 def kopf_pick(pos, images, ex_of_axis, target, p, support, out, source):
     """Sharpening: every voxel takes the single exemplar colour, among those the covering
     windows place on it, whose window agrees best with `target` (the averaged volume) over the

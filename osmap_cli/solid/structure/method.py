@@ -165,7 +165,7 @@ def _plan_particles(result: Plan, analyses, images, seed, wrap) -> None:
         np.concatenate([s.colours for s in sources]),
         pt.pooled([s.target for s in sources]) if len(sources) > 1 else sources[0].target,
         float(np.mean([s.gap for s in sources])))
-    params, _ = pt.fit(pooled, seed)
+    params, _ = pt.fit(pooled, seed, factor=factor)
     result.model = (pooled, params, factor)
     result.ex_labels = [m.astype(np.int64) for m in masks]
     result.ex_identity = []
