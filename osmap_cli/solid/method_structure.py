@@ -72,7 +72,7 @@ def _fill_labels(found, wrap: bool) -> list:
 def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
     started = time.perf_counter()
     found = plan(task.images, task.ex_of_axis, options.structure, options.phases, task.seed,
-                 task.tileable)
+                 task.tileable, probe_cap=max(task.shapes[0]))
     if found.kind == "none":
         result = method_osmap.run(task, options.fallback, progress)
         return SolidResult(result.voxels, result.source, tuple(found.report()),
