@@ -39,7 +39,7 @@ MAX_STEP = 1.3
 FINAL_GAP = 1.0  # voxels: the least gap between touching particles in a volume (the fill keeps
 #                  1-voxel gaps: osmap_cli.solid.structure.fill, label_constraint)
 PROBE_SIDE = (32, 64)  # voxels: the fit's probe volume, four 90th-percentile diameters a side
-MIN_PROBE = 16  # voxels: the least probe side when a small volume caps it
+MIN_PROBE = 32  # voxels: the least probe side when a small volume caps it
 SOURCE_MIN_AREA = 1  # px: specks too are particles (the fill alone does not make them)
 # the sizes fitted are the area-weighted mean and the 90th percentile: what the eye reads as the
 # stones' size (the many small cuts of a particle's caps, which a 2D exemplar need not show,
@@ -227,14 +227,15 @@ def fit(sources: ParticleSources, seed: int, probe: int | None = None, log=None,
     sources are in pixels `factor` times smaller than a voxel, as for build; the least gap
     included), so what is fitted is what is built; the round with the least error wins.
     The probe's side follows the particles' size (PROBE_SIDE), not the volume's, but is at
-    most `cap` (at least MIN_PROBE): a volume smaller than the probe shows no more than itself.
+    most twice `cap` (at least MIN_PROBE): a tiny volume shows no more than itself, and a
+    degenerate exemplar (a few large profiles among many specks) asks for many particles.
     Sparse particles: size sets the diameters, the number the area fraction; dense ones
     (cells): the number sets the diameters, the gap the fraction."""
     tf = sources.target.scaled(1.0 / factor).figures()
     if probe is None:
         probe = int(np.clip(4 * max(tf["d90"], 8.0), *PROBE_SIDE))
         if cap is not None:
-            probe = min(probe, max(int(cap), MIN_PROBE))
+            probe = min(probe, max(2 * int(cap), MIN_PROBE))
     shape = (probe, probe, probe)
     params = initial_params(sources)
     dense = tf["fraction"] > DENSE
