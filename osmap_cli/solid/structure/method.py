@@ -88,8 +88,8 @@ def plan(exemplars, ex_of_axis, structure: str = "auto", phases: int = 0, seed: 
     """Analyse the exemplars (one per distinct exemplar, ex_of_axis: which one each slice
     family shows) and fit the model of the structure `structure` (auto: the one the analysis
     finds); `phases`: colour phases of the segmentation (0: chosen from the exemplar);
-    `probe_cap`: the particle fit's probe volume is at most this many voxels a side (the
-    largest side of the volume to build: a small volume costs a small fit)."""
+    `probe_cap`: the largest side of the volume to build, which caps the particle fit's probe
+    volume (particles.fit: a small volume costs a small fit)."""
     started = time.perf_counter()
     images = [np.ascontiguousarray(im, np.float32) for im in exemplars]
     phases = phases or None
