@@ -207,18 +207,36 @@ def _covering(z, y, x, pos, shape, n, s, wrap, cand):
     return m
 
 
-@njit(cache=True, parallel=True)
 def kopf_average(pos, centre_weight, images, ex_of_axis, pixel_weight, p, out, source):
     """Every voxel: the weighted mean of the exemplar colours that the windows of all three axes
     covering it place there (weight = IRLS weight of the window's match x window falloff x
     pixel_weight (E, H, W): the histogram modulation). source (Z, Y, X, 3) gets the (axis, row,
-    col) of the heaviest proposal."""
+    col) of the heaviest proposal. (kopf_average_labelled without labels.)"""
+    kopf_average_labelled(pos, centre_weight, images, ex_of_axis, pixel_weight, p, _NO_LABELS,
+                          _NO_LABELS, 1.0, out, source)
+
+
+_NO_LABELS = np.zeros((1, 1, 1), np.int32)
+
+
+@njit(cache=True, parallel=True)
+def kopf_average_labelled(pos, centre_weight, images, ex_of_axis, pixel_weight, p, ex_labels,
+                          vol_labels, mismatch, out, source):
+    """Every voxel: the weighted mean of the exemplar colours that the windows of all three axes
+    covering it place there (weight = IRLS weight of the window's match x window falloff x
+    pixel_weight (E, H, W): the histogram modulation), with the structure as a constraint: a
+    proposal whose exemplar pixel's label (ex_labels int32 (E, H, W)) differs from the voxel's
+    (vol_labels int32 (Z, Y, X)) weighs `mismatch` times as much (0 < mismatch < 1; 1: no
+    constraint, the labels are not read), so a voxel of a 1-voxel gap takes gap colours whenever
+    one covering window offers them, however many windows put stone there. source (Z, Y, X, 3)
+    gets the (axis, row, col) of the heaviest proposal."""
     nz, ny, nx = out.shape[0], out.shape[1], out.shape[2]
     shape = (nz, ny, nx)
     n = p.size
     nc = out.shape[3]
     s = p.stride
     most = 3 * (n // s + 1) * (n // s + 1)
+    labelled = mismatch < 1.0
     for z in prange(nz):
         acc = np.empty(nc, np.float64)
         cand = np.empty((most, 8), np.int64)
@@ -228,11 +246,14 @@ def kopf_average(pos, centre_weight, images, ex_of_axis, pixel_weight, p, out, s
                 wsum = 0.0
                 wbest = -1.0
                 sa, sr, sc = 0, 0, 0
+                own = vol_labels[z, y, x] if labelled else 0
                 for j in range(_covering(z, y, x, pos, shape, n, s, p.wrap, cand)):
                     a, er, ec = cand[j, 0], cand[j, 1], cand[j, 2]
                     e = ex_of_axis[a]
                     w = (centre_weight[a, cand[j, 5], cand[j, 6], cand[j, 7]]
                          * p.window[cand[j, 3], cand[j, 4]] * pixel_weight[e, er, ec])
+                    if labelled and ex_labels[e, er, ec] != own:
+                        w *= mismatch
                     for ch in range(nc):
                         acc[ch] += w * images[e, er, ec, ch]
                     wsum += w

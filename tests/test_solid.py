@@ -122,7 +122,9 @@ def test_preview_is_written(run_cli, exemplar, tmp_path):
     assert result.code == 0, result.err
     image = read_image(tmp_path / "p.png").pixels
     assert image.shape[1] > 3 * image.shape[0] > 600  # cube + three slices in a row
-    assert image.std() > 0.05
+    # measured 0.22; the preview of a flat volume (the exemplar's mean colour) 0.15, of a black
+    # one 0.09 (the background and the labels alone)
+    assert image.std() > 0.18
 
 
 def test_memory_guard_refuses_with_the_amount(run_cli, exemplar, tmp_path, monkeypatch):
@@ -271,16 +273,18 @@ def test_every_axis_looks_like_the_exemplar(samples):
     noise = exemplar.reshape(-1, exemplar.shape[2])[rng.integers(0, 64 * 64, 40**3)]
     _, streaks_extruded, scale_extruded = _worst_axis(exemplar, extruded)
     coh_noise, _, scale_noise = _worst_axis(exemplar, noise.reshape(volume.shape))
-    assert streaks < 0.5 < streaks_extruded, (streaks, streaks_extruded)  # measured 0.07 / 27
+    # measured 0.14 / 27; the volume blurred (sigma 1.5 after every averaging pass) 0.31
+    assert streaks < 0.25 < streaks_extruded, (streaks, streaks_extruded)
     # measured 0.152 / 0.230 (the legacy method: 0.123; the former settings, preset muted:
-    # 0.140). The default trades patch coherence on this sample for its colours, contrast and
-    # unboxed slices; patch coherence also rewards blur (docs/solid.md)
+    # 0.140; without the search, the windows left where they start: 0.184). The default trades
+    # patch coherence on this sample for its colours, contrast and unboxed slices; patch
+    # coherence also rewards blur (docs/solid.md)
     assert coh < 0.7 * coh_noise, (coh, coh_noise)
     # Coherence alone rewards volumes collapsed into large blobs (seam 0: 0.085, the former
     # seam 0.2 at every level: 0.101, with x slices' features 2.35x and 1.98x too large); the
-    # feature scale on every axis catches them (measured |log2|: 0.29 here, 0.99 for the former
-    # defaults, 0.71 extruded, 1.29 noise).
-    assert scale < 0.4 < min(scale_extruded, scale_noise), (scale, scale_extruded, scale_noise)
+    # feature scale on every axis catches them (measured |log2|: 0.21 here, 0.99 for the former
+    # defaults, 0.71 extruded, 1.29 noise, 0.57 without the search, 1.13 blurred).
+    assert scale < 0.3 < min(scale_extruded, scale_noise), (scale, scale_extruded, scale_noise)
 
 
 def test_upsample_linear_keeps_constants_and_ramps():
@@ -478,7 +482,8 @@ def test_quality_is_read_by_every_method(exemplar):
 def test_thin_volume_keeps_its_short_sides_and_looks_like_the_exemplar(exemplar, method):
     """8x8x64 from 32 px: two levels, the 8-voxel sides kept at both (the positions upsample
     along the long side only); the long slices stay patch-coherent (measured 0.12 osmap, 0.04
-    legacy against 0.21 for exemplar pixels in random order)."""
+    legacy against 0.21 for exemplar pixels in random order; method osmap without its search,
+    the windows left where they start, 0.18)."""
     from osmap_cli.solid.pipeline import plan_levels
 
     pixels = read_image(exemplar).pixels
@@ -489,7 +494,8 @@ def test_thin_volume_keeps_its_short_sides_and_looks_like_the_exemplar(exemplar,
     long_slices = [result.voxels[:, :, i] for i in (1, 6)] + [result.voxels[:, i] for i in (1, 6)]
     noise = pixels.reshape(-1, 3)[np.random.default_rng(0).integers(0, 32 * 32, 64 * 8)]
     coherence = np.mean([ts.coherence(pixels, s, stride=2) for s in long_slices])
-    assert coherence < 0.75 * ts.coherence(pixels, noise.reshape(64, 8, 3), stride=2)
+    bound = {"osmap": 0.7, "legacy": 0.4}[method]  # measured 0.56 / 0.20; no search 0.82
+    assert coherence < bound * ts.coherence(pixels, noise.reshape(64, 8, 3), stride=2)
 
 
 def _boxy(exemplar, side, block, seed=0):
@@ -535,10 +541,12 @@ def test_slices_are_not_boxy_and_keep_the_colours(samples):
     new, old = volume("osmap"), volume("legacy")
     boxy = _boxy(exemplar, 32, 8)
     axis_new, axis_boxy = _worst_axis_energy(exemplar, new), _worst_axis_energy(exemplar, boxy)
-    assert axis_new < 1.25 < axis_boxy, (axis_new, axis_boxy)  # measured 0.93 / 1.9
+    # measured 0.73 / 2.2 (blocks of 4: 1.7); 1: as axis-aligned as the exemplar
+    assert axis_new < 1.0 < axis_boxy, (axis_new, axis_boxy)
     hist_new, hist_old = (max(ts.histogram_distance(exemplar, s) for slices in
                               _axis_slices(v).values() for s in slices) for v in (new, old))
-    assert hist_new < 0.75 * hist_old, (hist_new, hist_old)
+    # measured 0.42 times; the volume blurred (sigma 1.5 after every averaging pass) 0.86
+    assert hist_new < 0.6 * hist_old, (hist_new, hist_old)
 
 
 def test_turn_volume_samples_the_material_turned():

@@ -105,9 +105,14 @@ def test_particle_exemplar_keeps_its_profile_sizes_and_shapes(cells64):
                                                       quality="fast")).voxels
     report = profile_meter(cells64, volume)
     errors = report["errors"]["axes"]
-    # measured 0.12 (d50), 0.07, 0.02; method osmap on the same volume: 0.33, 0.21, 0.20
+    # measured 0.14 (d50), 0.07, 0.03; method osmap on the same volume: 0.33, 0.21, 0.20
     assert max(errors["d50"], errors["solidity"], errors["elongation"]) < 0.2, errors
-    assert errors["fraction"] < 0.15, errors
+    # the cells stay apart and of their size: area fraction and area-weighted diameter measured
+    # 0.02 and 0.02 on the slices, fraction 0.02 on the diagonal cuts; when the fill let the
+    # 1-voxel gaps between cells fade (the averaging unconstrained, gaps 1.5 voxels, the fit at
+    # the analysis' scale): 0.08, 0.21 and 0.11
+    assert max(errors["fraction"], errors["diameter"]) < 0.06, errors
+    assert report["errors"]["diagonal"]["fraction"] < 0.06, report["errors"]["diagonal"]
 
 
 def test_layered_exemplar_keeps_its_spacing(wood):

@@ -14,7 +14,7 @@ exemplar's distribution. An exemplar with none of these structures is made by me
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -61,16 +61,26 @@ class Options:
             fallback=method_osmap.Options.from_solid(opts))
 
 
+def _fill_labels(found, wrap: bool) -> list:
+    """The exemplars' particle masks as the fill reads them: the split lines between touching
+    profiles belong to the particles (the volume parts its particles by real gaps, which must
+    take the exemplar's gap colours, not the stone colours of a split line)."""
+    return [replace(a.reader, split=False).particle_mask(im, wrap).astype(np.int64)
+            for a, im in zip(found.analyses, found.images)]
+
+
 def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
     started = time.perf_counter()
     found = plan(task.images, task.ex_of_axis, options.structure, options.phases, task.seed,
-                 task.tileable)
+                 task.tileable, probe_cap=max(task.shapes[0]))
     if found.kind == "none":
         result = method_osmap.run(task, options.fallback, progress)
         return SolidResult(result.voxels, result.source, tuple(found.report()),
                            found.summary())
     built = build_structure(found, task.shapes[0], task.seed, task.tileable)
     structure_seconds = time.perf_counter() - started
+    if found.kind == "particles":
+        found = replace(found, ex_labels=_fill_labels(found, task.tileable))
     voxels, source = fill(task, found.ex_labels, found.ex_identity, built.labels,
                           built.identity, options.fill, progress)
     voxels = finish(voxels, found, built, options.fill.phase_match, task.tileable)

@@ -26,6 +26,7 @@ from osmap_kernels.kopf import (
     KopfSearch,
     fill_positions,
     kopf_average,
+    kopf_average_labelled,
     kopf_cluster,
     kopf_pick,
     kopf_search,
@@ -124,14 +125,17 @@ def random_positions(level: SolidLevel, ex_of_axis, seed: int) -> np.ndarray:
 
 
 def optimise(task: SolidTask, levels: list[SolidLevel], start: np.ndarray,
-             opt: Optimisation, progress=None, guides=None, initial=None):
+             opt: Optimisation, progress=None, guides=None, initial=None, labels=None):
     """(voxels float32 (Z, Y, X, C), source int32 (Z, Y, X, 3)) of the finest level: the
     levels (finest first, one per task level) optimised from the coarsest, whose window centres
     start at `start` int32 (3, Z, Y, X, 2). `guides`: per level (finest first), float32
     (3, Z, Y, X, G): guide channels every slice family's windows carry beside the colours (the
     levels' search features then cover colours and guides alike; their `stacked` images, which
     are averaged, the colours only). `initial`: the coarsest volume's colours for the first
-    search (default: the average of the start positions' windows)."""
+    search (default: the average of the start positions' windows). `labels`: per level (finest
+    first), None or (volume int32 (Z, Y, X), exemplars int32 (E, H, W), mismatch): the
+    averaging weighs proposals from exemplar pixels of another label `mismatch` times as much
+    (kernels' kopf_average_labelled)."""
     ex_of_axis = task.ex_of_axis
     total = float(len(levels) * opt.iterations)
     done = 0.0
@@ -184,7 +188,12 @@ def optimise(task: SolidTask, levels: list[SolidLevel], start: np.ndarray,
                                                      imgs.shape[:3], opt.position_histogram)
             averaged = np.empty_like(vol)
             cw = ((dist.astype(np.float64) + eps) ** power).astype(np.float32)
-            kopf_average(pos, cw, imgs, ex_of_axis, weights, average, averaged, source)
+            constraint = labels[index] if labels is not None else None
+            if constraint is None:
+                kopf_average(pos, cw, imgs, ex_of_axis, weights, average, averaged, source)
+            else:
+                kopf_average_labelled(pos, cw, imgs, ex_of_axis, weights, average, constraint[1],
+                                      constraint[0], constraint[2], averaged, source)
             vol = averaged
             if _sharpens(opt, index, it):
                 sharp = np.empty_like(vol)

@@ -4,7 +4,10 @@ window carries, beside its colours, the structure as its slice shows it (the in-
 to the nearest phase boundary, clipped; the identity of the particle or phase: the mean colour
 of its source), and the exemplar windows carry the same channels computed from its
 segmentation. Every voxel so takes exemplar colour from the same kind of place: inside a stone
-near its rim, mid-vein, matrix. Then each phase's colours are quantile-matched to the
+near its rim, mid-vein, matrix. The guides steer the search only; the structure is kept by a
+constraint in the averaging: a voxel weighs the colours proposed from exemplar pixels of its
+own label far above the others (label_mismatch), so the 8 x 8 windows that cover a 1-voxel gap
+between stones cannot average it away. Then each phase's colours are quantile-matched to the
 exemplar's pixels of that phase and each particle's mean colour to its source profile's.
 """
 
@@ -14,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from osmap_cli.solid.core import SolidTask, window_level
+from osmap_cli.solid.core import SolidTask, common_shape, stack, window_level
 from osmap_cli.solid.layout import Layout, organise
 from osmap_cli.solid.optimise import Optimisation, optimise
 from osmap_cli.solid.structure.measures import squared_distance
@@ -41,6 +44,7 @@ class Fill:
     clip: float = 4.0
     guide_weight: float = 1.0
     phase_match: float = 1.0
+    label_mismatch: float = 0.01
 
 
 def distance_guide(labels: np.ndarray, axes, wrap: bool, clip: float) -> np.ndarray:
@@ -118,6 +122,21 @@ def identity_colours(ident: np.ndarray, ex_identity, images) -> np.ndarray:
     return out.reshape(*ident.shape[:-1], dst.shape[1]).astype(np.float32)
 
 
+def label_constraint(task: SolidTask, ex_labels, labels, mismatch: float):
+    """Per level (finest first): (volume labels int32 (Z, Y, X), exemplar labels int32
+    (E, H, W), mismatch), optimise's `labels`; None with mismatch 1 (no constraint)."""
+    if mismatch >= 1.0:
+        return None
+    out = []
+    for level in range(task.levels):
+        images = task.exemplars(level)
+        ex = stack([centre_samples(lb, im.shape[:2]).astype(np.int32)
+                    for lb, im in zip(ex_labels, images)], common_shape(images))
+        vol = centre_samples(labels, task.shapes[level]).astype(np.int32)
+        out.append((np.ascontiguousarray(vol), ex, float(mismatch)))
+    return out
+
+
 def fill(task: SolidTask, ex_labels, ex_identity, labels, identity, params: Fill,
          progress=None):
     """(voxels float32 (Z, Y, X, C), source int32 (Z, Y, X, 3)) of the task's finest level.
@@ -136,7 +155,9 @@ def fill(task: SolidTask, ex_labels, ex_identity, labels, identity, params: Fill
     start = organise(levels[-1], task.ex_of_axis, params.layout, tileable=task.tileable,
                      seed=task.seed)
     coarse = identity_colours(block_mean(identity, task.shapes[-1]), ex_identity, images)
-    return optimise(task, levels, start, params.optimisation, progress, guides, coarse)
+    constraint = label_constraint(task, ex_labels, labels, params.label_mismatch)
+    return optimise(task, levels, start, params.optimisation, progress, guides, coarse,
+                    constraint)
 
 
 def match_phases(voxels: np.ndarray, labels: np.ndarray, coverage: np.ndarray, exemplars,

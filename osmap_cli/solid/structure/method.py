@@ -84,10 +84,12 @@ class Plan:
 
 
 def plan(exemplars, ex_of_axis, structure: str = "auto", phases: int = 0, seed: int = 0,
-         wrap: bool = False) -> Plan:
+         wrap: bool = False, probe_cap: int | None = None) -> Plan:
     """Analyse the exemplars (one per distinct exemplar, ex_of_axis: which one each slice
     family shows) and fit the model of the structure `structure` (auto: the one the analysis
-    finds); `phases`: colour phases of the segmentation (0: chosen from the exemplar)."""
+    finds); `phases`: colour phases of the segmentation (0: chosen from the exemplar);
+    `probe_cap`: the largest side of the volume to build, which caps the particle fit's probe
+    volume (particles.fit: a small volume costs a small fit)."""
     started = time.perf_counter()
     images = [np.ascontiguousarray(im, np.float32) for im in exemplars]
     phases = phases or None
@@ -109,7 +111,7 @@ def plan(exemplars, ex_of_axis, structure: str = "auto", phases: int = 0, seed: 
         result.seconds = time.perf_counter() - started
         return result
     if chosen == "particles":
-        _plan_particles(result, analyses, images, seed, wrap)
+        _plan_particles(result, analyses, images, seed, wrap, probe_cap)
     else:
         seg = _joint_segmenter(images, phases, wrap)
         labels = [seg.labels(im, wrap) for im in images]
@@ -146,7 +148,7 @@ def _phase_colours(images, labels) -> np.ndarray:
     return out
 
 
-def _plan_particles(result: Plan, analyses, images, seed, wrap) -> None:
+def _plan_particles(result: Plan, analyses, images, seed, wrap, probe_cap=None) -> None:
     """Particle sources from every exemplar's profiles, pooled; the exemplar guides."""
     from osmap_cli.solid.structure.analysis import enlarge
 
@@ -165,7 +167,7 @@ def _plan_particles(result: Plan, analyses, images, seed, wrap) -> None:
         np.concatenate([s.colours for s in sources]),
         pt.pooled([s.target for s in sources]) if len(sources) > 1 else sources[0].target,
         float(np.mean([s.gap for s in sources])))
-    params, _ = pt.fit(pooled, seed)
+    params, _ = pt.fit(pooled, seed, factor=factor, cap=probe_cap)
     result.model = (pooled, params, factor)
     result.ex_labels = [m.astype(np.int64) for m in masks]
     result.ex_identity = []

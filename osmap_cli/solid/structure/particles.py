@@ -34,10 +34,12 @@ PLACE_ATTEMPTS = 24
 FIT_ROUNDS = 6
 PROBE_SLICES = 6  # per family, plus the diagonal planes
 DENSE = 0.5  # area fraction above which particles pack as cells
-MIN_GAP, MAX_GAP = 1.5, 6.0  # voxels: thinner walls do not separate cells on a cut
+MIN_GAP, MAX_GAP = 1.5, 6.0  # px of the analysis: thinner walls do not separate cells on a cut
 MAX_STEP = 1.3
-FINAL_GAP = 1.5  # voxels: the least gap between touching particles in a volume (thinner gaps
-#                  vanish in the fill)
+FINAL_GAP = 1.0  # voxels: the least gap between touching particles in a volume (the fill keeps
+#                  1-voxel gaps: osmap_cli.solid.structure.fill, label_constraint)
+PROBE_SIDE = (32, 64)  # voxels: the fit's probe volume, four 90th-percentile diameters a side
+MIN_PROBE = 32  # voxels: the least probe side when a small volume caps it
 SOURCE_MIN_AREA = 1  # px: specks too are particles (the fill alone does not make them)
 # the sizes fitted are the area-weighted mean and the 90th percentile: what the eye reads as the
 # stones' size (the many small cuts of a particle's caps, which a 2D exemplar need not show,
@@ -191,7 +193,7 @@ def pooled(stats) -> ProfileStats:
 def initial_params(sources: ParticleSources) -> ParticleParams:
     """A first guess: spheres 4/pi the profiles' size (a sphere's mean cut is pi/4 of its
     diameter), as many as fill the exemplar's area fraction (Delesse: V_V = A_A); dense
-    materials (cells) fill their Laguerre cells and keep the exemplar's gap."""
+    materials (cells) fill their Laguerre cells, uncut, and keep the exemplar's gap."""
     t = sources.target
     d = sources.diameters
     mean_d = float(np.exp(np.log(d).mean()))
@@ -202,7 +204,10 @@ def initial_params(sources: ParticleSources) -> ParticleParams:
                           weights=w))
     density = t.fraction / (0.7 * 4.0 / 3.0 * math.pi * r3)
     gap = float(np.clip(sources.gap, MIN_GAP, MAX_GAP)) if dense else MIN_GAP
-    return ParticleParams(density=density, size=size, gap=gap, exclusion=0.6 if dense else 0.7)
+    # dense: no cutting planes (a cut particle leaves a pocket of matrix in its cell, wider than
+    # the exemplar's gaps, which a cut through the volume shows as a stone-less blotch)
+    return ParticleParams(density=density, size=size, gap=gap, exclusion=0.6 if dense else 0.7,
+                          cut=1.0 if dense else 0.5)
 
 
 def _step(ratio: float, power: float) -> float:
@@ -215,20 +220,28 @@ def _error(got: dict, want: dict) -> float:
     return max(abs(got[k] / want[k] - 1.0) for k in FITTED if want[k] > 0)
 
 
-def fit(sources: ParticleSources, seed: int, probe: int | None = None, log=None):
-    """(ParticleParams, the best probe's cut statistics): rounds of build, cut, measure, correct
-    on a periodic probe volume at the exemplar's scale; the round with the least error wins.
+def fit(sources: ParticleSources, seed: int, probe: int | None = None, log=None,
+        factor: float = 1.0, cap: int | None = None):
+    """(ParticleParams, the best probe's cut statistics in voxels): rounds of build, cut,
+    measure, correct on a periodic probe volume built as the volumes will be (`factor`: the
+    sources are in pixels `factor` times smaller than a voxel, as for build; the least gap
+    included), so what is fitted is what is built; the round with the least error wins.
+    The probe's side follows the particles' size (PROBE_SIDE), not the volume's, but is at
+    most twice `cap` (at least MIN_PROBE): a tiny volume shows no more than itself, and a
+    degenerate exemplar (a few large profiles among many specks) asks for many particles.
     Sparse particles: size sets the diameters, the number the area fraction; dense ones
     (cells): the number sets the diameters, the gap the fraction."""
-    tf = sources.target.figures()
+    tf = sources.target.scaled(1.0 / factor).figures()
     if probe is None:
-        probe = int(np.clip(4 * max(tf["d90"], 8.0), 40, 72))
+        probe = int(np.clip(4 * max(tf["d90"], 8.0), *PROBE_SIDE))
+        if cap is not None:
+            probe = min(probe, max(2 * int(cap), MIN_PROBE))
     shape = (probe, probe, probe)
     params = initial_params(sources)
     dense = tf["fraction"] > DENSE
     best = None
     for round_ in range(FIT_ROUNDS):
-        built = build(shape, params, sources, seed + 7919 * round_, True)
+        built = build(shape, params, sources, seed + 7919 * round_, True, factor)
         stats = cut_stats(built.owner >= 0, True)
         got = stats.figures()
         error = _error(got, tf)
@@ -247,7 +260,7 @@ def fit(sources: ParticleSources, seed: int, probe: int | None = None, log=None)
             density = params.density * _step(size_ratio, -1.8)
             size = params.size
             gap = float(np.clip(params.gap * _step(frac_ratio, -1.2), MIN_GAP, MAX_GAP))
-            if gap == MIN_GAP and frac_ratio > 1:
+            if gap / factor <= FINAL_GAP * 1.01 and frac_ratio > 1:
                 size = params.size * _step(frac_ratio, 0.4)
         else:
             size = params.size * _step(size_ratio, 0.7)
