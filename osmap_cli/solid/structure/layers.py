@@ -25,9 +25,8 @@ RING_SIDES = 0.35  # ... and the other families' stripes are at least this coher
 MIN_RUN = 1.0
 WOBBLE_LENGTH = 4.0  # the displacement's correlation length, in layer spacings
 MAX_CHAIN = 1 << 20
-STREAK_LENGTH = 0.7  # fibres: correlation across the grain, in layer spacings
-STREAK_STRETCH = 12.0  # ... and this many times longer along it
-STREAK_AMPLITUDE = 0.35  # ... displacement, in layer spacings
+PARALLEL = 30.0  # degrees: one exemplar's layers this near a slice family's plane are tilted
+TILT = 45.0  # ... this much about their grain, so that no family cuts along them
 
 
 @dataclass(frozen=True)
@@ -45,9 +44,7 @@ class LayerModel:
     wobble: float
     spacing: float
     extent: tuple = (0.0, 0.0)  # rings: the end exemplar's size (rows, cols), px
-    across: np.ndarray | None = None  # fibres: the direction (z, y, x) within the layers
-    #                                   across their grain (streaks vary fast along it only)
-    streaks: float = 0.0  # their displacement amplitude (voxels)
+    tilt: float = 0.0  # one exemplar: degrees the layers were turned about their grain
 
     @property
     def rings(self) -> bool:
@@ -170,13 +167,6 @@ def layer_coordinate(shape, model: LayerModel, seed: int, wrap: bool) -> np.ndar
     if model.wobble > 0:
         length = WOBBLE_LENGTH * model.spacing
         u = u + model.wobble * smooth_noise(shape, length, seed + 11, wrap)
-    if model.streaks > 0:
-        # fibres: a displacement that changes fast across the grain within the layers and
-        # slowly along the grain and the normal, so a cut parallel to the layers shows streaks
-        # along the grain instead of one flat band, and cuts across the layers keep them whole
-        u = u + model.streaks * smooth_noise(shape, STREAK_STRETCH * STREAK_LENGTH
-                                             * model.spacing, seed + 13, wrap, model.across,
-                                             1.0 / STREAK_STRETCH)
     return u.astype(np.float32)
 
 
@@ -264,15 +254,25 @@ def fit_layers(images, labels, analyses, ex_of_axis) -> LayerModel:
         e = int(ex_of_axis[(ring[0] + 1) % 3])
         angle_ref, lum_ref = analyses[e].angle, lums[e]
     wobble = wobble_amplitude(lum_ref, angle_ref, spacing)
-    across, streaks = None, 0.0
-    if single:
-        # one exemplar shows the layers on every face: a face parallel to them gets the
-        # exemplar's streaks along its columns (the grain along the side faces' stripes)
+    tilt = 0.0
+    if single and np.abs(normal).max() > np.cos(np.radians(PARALLEL)):
+        # one exemplar shows the layers on every face, but layers along an axis would lie
+        # parallel to one slice family (one flat band there): turned TILT degrees about their
+        # grain (the side faces' stripe direction), two families show the exemplar's stripes
+        # along its direction and the third (the end grain) straight stripes across it; the
+        # bands (and their displacement) are made thinner so that the two show the exemplar's
+        # spacing (and waviness; `spacing` stays the spacing they show)
         grain = stripe_direction(analyses[0].angle, 1)
         grain = grain - (grain @ normal) * normal
         grain /= max(np.linalg.norm(grain), 1e-9)
-        across = np.cross(normal, grain)
-        streaks = STREAK_AMPLITUDE * spacing
+        side = np.cross(grain, normal)
+        turned = np.cos(np.radians(TILT)) * normal + np.sin(np.radians(TILT)) * side
+        across = normal - (normal @ grain) * grain  # family 1's in-plane stripe normal
+        shrink = abs(float(turned @ across)) / max(float(np.linalg.norm(across)), 1e-9)
+        lengths = tuple(x * shrink for x in lengths)
+        wobble *= shrink
+        normal = turned * (1 if turned[np.argmax(np.abs(turned))] > 0 else -1)
+        tilt = TILT
     extent = labels[int(ex_of_axis[ring[0]])].shape if ring is not None else (0.0, 0.0)
     return LayerModel(normal, axis, rel, lengths, trans, wobble, spacing,
-                      tuple(float(v) for v in extent), across, streaks)
+                      tuple(float(v) for v in extent), tilt)

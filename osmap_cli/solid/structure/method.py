@@ -70,6 +70,8 @@ class Plan:
         if isinstance(m, ly.LayerModel):
             where = (f"rings around the {'xyz'[m.axis]} axis" if m.rings else
                      "planar, normal (z, y, x) = " + ", ".join(f"{v:.2f}" for v in m.normal))
+            if m.tilt:
+                where += f" (turned {m.tilt:.0f} deg about the grain: no face along the layers)"
             return [f"layers: {where}, spacing {m.spacing:.1f} px, waviness {m.wobble:.1f} px"]
         if isinstance(m, sh.SheetModel):
             return ["veins: sheets normal (z, y, x) = " + ", ".join(f"{v:.2f}" for v in m.normal)
