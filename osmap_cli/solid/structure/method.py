@@ -238,7 +238,10 @@ def build_structure(found: Plan, shape, seed: int, wrap: bool) -> Built:
     k = len(found.colours)
     onehot = (labels[..., None] == np.arange(k)).astype(np.float32)
     coverage = smooth_volume(onehot, COVERAGE_SIGMA, wrap)
-    return Built(labels, found.colours[labels].astype(np.float32), coverage)
+    # the identity guide antialiased like the coverage: hard phase steps on the voxel grid
+    # would make the fill copy their staircases (axis-aligned edges)
+    identity = coverage @ found.colours.astype(np.float32)
+    return Built(labels, identity.astype(np.float32), coverage)
 
 
 def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np.ndarray:

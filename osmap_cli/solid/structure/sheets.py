@@ -29,11 +29,12 @@ from osmap_cli.solid.structure import layers as ly
 from osmap_cli.solid.structure.noise import PeriodicNoise
 from osmap_cli.solid.structure.slices import axis_slices
 
-WARP_LENGTH = 2.5
+WARP_LENGTH = 2.5  # the perturbation's correlation length, in band spacings
 OCTAVES = 3
 SWIRL = 0.6  # the displacement of the positions the perturbation is read at, x warp length
 GAIN = 0.5  # each octave half the length and half the amplitude of the one before
-AMPLITUDES = (0.2, 0.4, 0.6, 0.8)  # perturbation tried, x the warp length
+AMPLITUDES = (0.1, 0.2, 0.3, 0.45, 0.6)  # perturbation tried, x the warp length
+COHERENCE_TOLERANCE = 0.05  # the least perturbation this near the best fit is kept
 PROBE = 48  # the probe volume's side at most (else the exemplar's)
 SCALE_ROUNDS = 3
 CHAINS = 12  # band sequences tried: the one whose volume fractions are the exemplar's
@@ -187,18 +188,19 @@ def fit_sheets(labels, analyses, ex_of_axis, seed: int) -> SheetModel:
 
 
 def fit_perturbation(model: SheetModel, seed: int, side: int = PROBE) -> SheetModel:
-    """The amplitude whose cuts have the exemplar's orientation coherence (of AMPLITUDES) and
-    the scale whose cuts have its boundary density, on a probe volume."""
+    """The amplitude whose cuts have the exemplar's orientation coherence (the least of
+    AMPLITUDES within COHERENCE_TOLERANCE of the best: swirl beyond what the exemplar shows is
+    not added) and the scale whose cuts have its boundary density, on a probe volume."""
     shape = (side,) * 3
     model = _fit_scale(model, shape, seed)
-    best = None
+    trials = []
     for a in AMPLITUDES:
         trial = _fit_scale(replace(model, amplitude=a), shape, seed)
         cuts = _cuts(build_sheets(shape, trial, seed, False))
-        err = abs(float(np.mean([label_coherence(c) for c in cuts])) - model.coherence)
-        if best is None or err < best[0]:
-            best = (err, trial)
-    model = best[1]
+        trials.append((abs(float(np.mean([label_coherence(c) for c in cuts]))
+                           - model.coherence), trial))
+    least = min(err for err, _ in trials)
+    model = next(trial for err, trial in trials if err <= least + COHERENCE_TOLERANCE)
     for _ in range(SCALE_ROUNDS - 1):
         model = _fit_scale(model, shape, seed)
     return model
