@@ -151,10 +151,54 @@ def band_sequence(model: LayerModel, extent: float, seed: int):
     return np.array(starts), np.array(phases, np.int64)
 
 
-def layer_coordinate(shape, model: LayerModel, seed: int, wrap: bool) -> np.ndarray:
-    """float32 (Z, Y, X): u at every voxel centre, displaced by the wobble."""
+def periodic_normal(shape, normal, spacing: float):
+    """(normal', period): the direction nearest `normal` (z, y, x) along which planar bands
+    repeat across the faces of a volume of `shape`: u = normal' . x with normal'_d = k_d
+    period / shape_d for whole numbers k_d, |normal'| = 1, so u grows by whole periods across
+    each face. Of the wave numbers up to 4 per axis, the nearest direction whose period holds at
+    least two spacings (else the longest period)."""
+    n = np.asarray(normal, np.float64) / np.linalg.norm(normal)
+    size = np.asarray(shape, np.float64)
+    best, longest = None, None
+    for k in np.ndindex(9, 9, 9):
+        k = np.asarray(k, np.float64) - 4
+        if not k.any():
+            continue
+        g = k / size
+        period = 1.0 / np.linalg.norm(g)
+        cos = float(g @ n) * period
+        if cos <= 0:
+            continue
+        if period >= 2 * spacing and (best is None or cos > best[0] + 1e-12):
+            best = (cos, g * period, period)
+        if longest is None or period > longest[2] + 1e-9 or (
+                abs(period - longest[2]) <= 1e-9 and cos > longest[0]):
+            longest = (cos, g * period, period)
+    _, direction, period = best if best is not None else longest
+    return direction, float(period)
+
+
+def periodic_bands(model, period: float, seed: int):
+    """(starts, phases) of a band sequence (band_sequence) stretched to fill [0, period)
+    exactly, to be read at u modulo the period."""
+    starts, phases = band_sequence(model, period / 2, seed)
+    starts = (starts - starts[0]) * period / max(starts[-1] - starts[0], 1e-9)
+    return starts, phases
+
+
+def band_index(starts, phases, u, period: float | None = None) -> np.ndarray:
+    """The phase of the band every value of u falls in (u modulo `period` when given)."""
+    if period is not None:
+        u = np.mod(u, period)
+    return phases[np.clip(np.searchsorted(starts, u, side="right") - 1, 0, len(phases) - 1)]
+
+
+def layer_coordinate(shape, model: LayerModel, seed: int, wrap: bool):
+    """(u float32 (Z, Y, X) at every voxel centre, displaced by the wobble; the period of the
+    bands along u when they wrap (--tileable planar layers), else None)."""
     grids = np.meshgrid(*(np.arange(n, dtype=np.float32) + 0.5 - n / 2 for n in shape),
                         indexing="ij")
+    period = None
     if model.rings:
         # the axis as far from the end face's centre as in the end exemplar, in proportion to
         # the face's size when it is smaller (a smaller face shows the exemplar's framing)
@@ -163,16 +207,21 @@ def layer_coordinate(shape, model: LayerModel, seed: int, wrap: bool) -> np.ndar
         u = np.hypot(grids[dims[0]] - k[0] * model.centre[0],
                      grids[dims[1]] - k[1] * model.centre[1])
     else:
-        u = sum(float(model.normal[d]) * grids[d] for d in range(3))
+        normal = model.normal
+        if wrap:
+            normal, period = periodic_normal(shape, normal, model.spacing)
+        u = sum(float(normal[d]) * grids[d] for d in range(3))
     if model.wobble > 0:
         length = WOBBLE_LENGTH * model.spacing
         u = u + model.wobble * smooth_noise(shape, length, seed + 11, wrap)
-    return u.astype(np.float32)
+    return u.astype(np.float32), period
 
 
 def build_layers(shape, model: LayerModel, seed: int, wrap: bool) -> np.ndarray:
     """int64 (Z, Y, X): the phase of every voxel."""
-    u = layer_coordinate(shape, model, seed, wrap)
+    u, period = layer_coordinate(shape, model, seed, wrap)
+    if period is not None:
+        return band_index(*periodic_bands(model, period, seed), u, period)
     extent = float(np.abs(u).max()) + 2 * model.spacing
     starts, phases = band_sequence(model, extent, seed)
     idx = np.clip(np.searchsorted(starts, u, side="right") - 1, 0, len(phases) - 1)

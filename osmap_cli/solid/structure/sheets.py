@@ -66,23 +66,27 @@ class SheetModel:
         return WARP_LENGTH * self.spacing
 
 
-def sheet_coordinate(shape, model: SheetModel, seed: int, wrap: bool) -> np.ndarray:
-    """float32 (Z, Y, X): u at every voxel centre: voxels along the normal, plus fBm read at
+def sheet_coordinate(shape, model: SheetModel, seed: int, wrap: bool):
+    """(u float32 (Z, Y, X) at every voxel centre: voxels along the normal, plus fBm read at
     positions displaced by a vector fBm (a warped turbulence: the sheets fold and swirl where a
-    plain perturbation would close into rings around its extremes)."""
+    plain perturbation would close into rings around its extremes); with wrap the period of the
+    bands along u, else None: the normal is then the nearest along which they wrap)."""
     grids = np.stack(np.meshgrid(*(np.arange(n, dtype=np.float32) + 0.5 for n in shape),
                                  indexing="ij"), -1)
     centred = grids - np.asarray(shape, np.float32) / 2
-    u = centred @ np.asarray(model.normal, np.float32)
+    normal, period = model.normal, None
+    if wrap:
+        normal, period = ly.periodic_normal(shape, normal, model.spacing * model.scale)
+    u = centred @ np.asarray(normal, np.float32)
     if model.amplitude <= 0:
-        return u.astype(np.float32)
+        return u.astype(np.float32), period
     # periodic noise cannot be correlated over more than the box
     length = min(model.warp_length, min(shape) / 2) if wrap else model.warp_length
-    period = shape if wrap else tuple(n + int(4 * length) for n in shape)
-    warp = np.stack([_fbm(grids, period, length, seed + 31 + 7 * d, 2) for d in range(3)], -1)
-    u = u + model.amplitude * length * _fbm(grids + SWIRL * length * warp, period, length,
+    box = shape if wrap else tuple(n + int(4 * length) for n in shape)
+    warp = np.stack([_fbm(grids, box, length, seed + 31 + 7 * d, 2) for d in range(3)], -1)
+    u = u + model.amplitude * length * _fbm(grids + SWIRL * length * warp, box, length,
                                             seed + 17, OCTAVES)
-    return u.astype(np.float32)
+    return u.astype(np.float32), period
 
 
 def _fbm(points, period, length: float, seed: int, octaves: int) -> np.ndarray:
@@ -99,10 +103,9 @@ def _fbm(points, period, length: float, seed: int, octaves: int) -> np.ndarray:
 def build_sheets(shape, model: SheetModel, seed: int, wrap: bool) -> np.ndarray:
     """int64 (Z, Y, X): the phase of every voxel (the band of u it falls in). A volume holds
     few bands, so of CHAINS band sequences the one whose phase fractions in this volume are
-    nearest the exemplar's is kept. With wrap the perturbation wraps but the planes n . x do
-    not: the bands are continuous inside the volume, and across its faces only where n is an
-    axis."""
-    u = sheet_coordinate(shape, model, seed, wrap)
+    nearest the exemplar's is kept. With wrap the bands repeat across the faces (a sequence
+    stretched to the period along u, the normal the nearest that wraps: sheet_coordinate)."""
+    u, period = sheet_coordinate(shape, model, seed, wrap)
     scaled = replace(model, runs=tuple(r * model.scale for r in model.runs),
                      spacing=model.spacing * model.scale)
     extent = float(np.abs(u).max()) + 2 * scaled.spacing
@@ -110,18 +113,18 @@ def build_sheets(shape, model: SheetModel, seed: int, wrap: bool) -> np.ndarray:
     k = len(model.runs)
     best = None
     for chain in range(CHAINS if model.fractions is not None else 1):
-        starts, phases = ly.band_sequence(scaled, extent, seed + 1000 * chain)
+        if period is None:
+            bands = ly.band_sequence(scaled, extent, seed + 1000 * chain)
+        else:
+            bands = ly.periodic_bands(scaled, period, seed + 1000 * chain)
         if model.fractions is None:
-            best = (0.0, starts, phases)
+            best = (0.0, bands)
             break
-        idx = np.clip(np.searchsorted(starts, sample, side="right") - 1, 0, len(phases) - 1)
-        got = np.bincount(phases[idx], minlength=k) / len(sample)
+        got = np.bincount(ly.band_index(*bands, sample, period), minlength=k) / len(sample)
         err = float(np.abs(got - model.fractions).sum())
         if best is None or err < best[0]:
-            best = (err, starts, phases)
-    _, starts, phases = best
-    idx = np.clip(np.searchsorted(starts, u, side="right") - 1, 0, len(phases) - 1)
-    return phases[idx]
+            best = (err, bands)
+    return ly.band_index(*best[1], u, period)
 
 
 def boundary_density(labels: np.ndarray) -> float:
