@@ -110,13 +110,17 @@ def test_one_layered_exemplar_keeps_straight_bands_on_every_face(samples):
     side = read_image(samples / "wood_side.png").pixels
     found = plan([side], np.zeros(3, np.int64))
     assert found.kind == "layers" and found.model.tilt > 0
-    built = build_structure(found, (48, 48, 48), 1, False)
-    colours = found.colours[built.labels].astype(np.float32)
-    for face in (colours[:, :, 24], colours[:, 24], colours[24]):  # x (the end), y, z
-        _, coherence, _ = measures.structure_tensor(lab(face)[..., 0])
-        # measured 0.79-0.89; with layers along z (the end face's bands folded into zigzags
-        # by streaks across the grain, the z face one band) 0.40 on the end face
-        assert coherence > 0.7, coherence
+    labels = build_structure(found, (48, 48, 48), 1, False).labels
+    colours = found.colours[labels].astype(np.float32)
+    coherence = [measures.structure_tensor(lab(face)[..., 0])[1]
+                 for face in (colours[:, :, 24], colours[:, 24])]  # x (the end), y
+    # measured 0.70 and 0.91; with layers along z, folded into zigzags on the end face by
+    # streaks across the grain: 0.40 and 0.89
+    assert coherence[0] > 0.6 and coherence[1] > 0.8, coherence
+    top = np.bincount(labels[24].ravel(), minlength=2) / labels[24].size
+    # the face along the grain shows both phases' bands (measured 0.43 / 0.57), not mostly
+    # one band (0.21 / 0.79 with layers along z)
+    assert top.min() > 0.3, top
 
 
 @pytest.mark.parametrize("which", ["veins", "layers"])

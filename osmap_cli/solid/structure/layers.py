@@ -26,7 +26,8 @@ MIN_RUN = 1.0
 WOBBLE_LENGTH = 4.0  # the displacement's correlation length, in layer spacings
 MAX_CHAIN = 1 << 20
 PARALLEL = 30.0  # degrees: one exemplar's layers this near a slice family's plane are tilted
-TILT = 45.0  # ... this much about their grain, so that no family cuts along them
+TILT = 25.0  # ... this much about their grain, so that no family cuts along them (more
+#               makes the end face's fill copy the exemplar's straight grain in steps)
 
 
 @dataclass(frozen=True)
