@@ -1,8 +1,8 @@
 """Veins in 3D (swirled marble, agate, onyx, furrowed bark): continuous sheets, the level sets of
 one smooth scalar field, as Perlin's marble: u = n . x + A turbulence(x). Along u the phases
-follow each other as bands, so every phase is a sheet that never breaks (u has no flat spots:
-its gradient is n plus a perturbation kept smaller than n on average), and every cut through
-the volume shows the bands as continuous curves.
+follow each other as bands, so every phase is a sheet, the set between two level values of one
+continuous field: it thins and folds but does not break off (closed pockets form only around
+the rare extremes of u), and every cut through the volume shows the bands as continuous curves.
 
 Fitted to the exemplar:
 - the order of the bands and each band's thickness: the phases' run lengths along lines across
@@ -11,8 +11,9 @@ Fitted to the exemplar:
 - the spacing: one scale on all band thicknesses, corrected by build, cut and measure until the
   cuts show the exemplar's density of phase boundaries (lines cross sheets obliquely, so runs
   are longer than the sheets are thick);
-- the perturbation: fBm (three octaves) with a correlation length of WARP_LENGTH spacings and
-  an amplitude chosen so that the cuts' global orientation coherence is the exemplar's (a
+- the perturbation: fBm (three octaves) with a correlation length of WARP_LENGTH spacings, read
+  at positions displaced by a vector fBm, with the least amplitude whose cuts' global
+  orientation coherence is (within COHERENCE_TOLERANCE of) the best match to the exemplar's (a
   stronger perturbation swirls the sheets more);
 - the dominant orientation: the sheets' mean normal, perpendicular to the exemplar's dominant
   stripe direction as layers' normals are (one family shows the mirrored diagonal:
@@ -26,6 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from osmap_cli.solid.structure import layers as ly
+from osmap_cli.solid.structure.field import boundary_density
 from osmap_cli.solid.structure.noise import PeriodicNoise
 from osmap_cli.solid.structure.slices import axis_slices
 
@@ -56,7 +58,7 @@ class SheetModel:
     transitions: np.ndarray
     spacing: float
     scale: float = 1.0
-    amplitude: float = 0.6
+    amplitude: float = 0.3
     boundary: float = 0.0
     coherence: float = 0.0
     fractions: np.ndarray | None = None  # the exemplar's phase fractions
@@ -125,13 +127,6 @@ def build_sheets(shape, model: SheetModel, seed: int, wrap: bool) -> np.ndarray:
         if best is None or err < best[0]:
             best = (err, bands)
     return ly.band_index(*best[1], u, period)
-
-
-def boundary_density(labels: np.ndarray) -> float:
-    """The share of 4-neighbour pixel pairs that cross a phase boundary."""
-    a = (labels[:, :-1] != labels[:, 1:]).mean()
-    b = (labels[:-1] != labels[1:]).mean()
-    return float((a + b) / 2)
 
 
 def label_coherence(labels: np.ndarray) -> float:
