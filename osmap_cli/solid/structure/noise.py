@@ -1,6 +1,7 @@
 """Smooth random fields for the structure: Gaussian noise filtered to a correlation length or
 to a given spectrum (FFT, periodic), generated on a coarse grid where the field is smooth and
-interpolated to the volume."""
+interpolated to the volume; and periodic noise that can be read at any point (for warped
+turbulence)."""
 
 from __future__ import annotations
 
@@ -22,13 +23,11 @@ def spectral_field(shape, amplitude, seed: int) -> np.ndarray:
     return field / std if std > 0 else field
 
 
-def smooth_noise(shape, length: float, seed: int, wrap: bool = False, along=None,
-                 stretch: float = 1.0) -> np.ndarray:
+def smooth_noise(shape, length: float, seed: int, wrap: bool = False) -> np.ndarray:
     """float32 (Z, Y, X): unit-variance Gaussian noise with a Gaussian correlation of about
-    `length` voxels (`stretch` times that in the direction `along` (z, y, x): below 1, shorter),
-    made on a grid min(length, stretch x length) / 4 coarser and interpolated (periodic with
-    wrap: the coarse grid divides the volume)."""
-    step = max(1.0, min(length, length * stretch) / 4.0)
+    `length` voxels, made on a grid length / 4 coarser and interpolated (periodic with wrap: the
+    coarse grid divides the volume)."""
+    step = max(1.0, length / 4.0)
     if wrap:
         coarse = tuple(max(4, int(round(n / step))) for n in shape)
     else:
@@ -38,10 +37,6 @@ def smooth_noise(shape, length: float, seed: int, wrap: bool = False, along=None
     def amplitude(kz, ky, kx):
         k = (sigma[0] * kz, sigma[1] * ky, sigma[2] * kx)  # cycles per correlation length
         k2 = k[0] ** 2 + k[1] ** 2 + k[2] ** 2
-        if along is not None and stretch != 1.0:
-            g = np.asarray(along, np.float64) / np.linalg.norm(along)
-            kg = g[0] * k[0] + g[1] * k[1] + g[2] * k[2]
-            k2 = k2 + (stretch ** 2 - 1.0) * kg ** 2
         return np.exp(-(np.pi ** 2) * k2)
 
     field = spectral_field(coarse, amplitude, seed).astype(np.float32)[..., None]
