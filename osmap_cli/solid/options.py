@@ -85,8 +85,9 @@ class SolidOptions(Options):
     # --- method structure (osmap_cli/solid/method_structure.py; its fill also reads the
     #     kopf_* window settings, knn and kopf_histogram below) ---
     structure: str = option("auto", help="method structure: the 3D structure built: auto (what "
-                            "the analysis finds), particles, layers, field (phase regions and "
-                            "veins), or none (the osmap method's slice optimisation alone)",
+                            "the analysis finds), particles, layers, veins (swirled bands and "
+                            "veins as continuous sheets), field (mottled phase regions), or "
+                            "none (the osmap method's slice optimisation alone)",
                             choices=STRUCTURES, tunable=True)
     phases: int = option(0, 0, 4, "method structure: colour phases of the exemplar's "
                          "segmentation (0: chosen from the exemplar, 2 to 4)", tunable=True)

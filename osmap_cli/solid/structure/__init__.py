@@ -8,9 +8,11 @@ One job a module:
   grey-level morphology, distance transforms;
 - profiles: the particle profiles' statistics (area fraction, size distribution, solidity,
   elongation);
-- analysis: what the exemplar shows: particles, layers, a phase field or none (`analyse`);
-- particles, layers, field: the 3D structures and the fitting of their models (stereology by
-  simulation, band sequences, a truncated Gaussian field); noise: smooth random fields;
+- analysis: what the exemplar shows: particles, layers, veins, a phase field or none
+  (`analyse`);
+- particles, layers, sheets, field: the 3D structures and the fitting of their models
+  (stereology by simulation, band sequences, bands of a warped turbulent field, a truncated
+  Gaussian field); noise: smooth random fields;
 - method: the analysis over the exemplars and the model fitted (`plan`), the volume's
   structure (`build_structure`), the final colour matching (`finish`);
 - fill: the guided slice-window optimisation that gives the structure its appearance;
@@ -19,4 +21,4 @@ One job a module:
 This package imports nothing heavy at import time; STRUCTURES is the --structure choice list.
 """
 
-STRUCTURES = ("auto", "particles", "layers", "field", "none")
+STRUCTURES = ("auto", "particles", "layers", "veins", "field", "none")

@@ -1,6 +1,7 @@
 """What structure an exemplar has, read from the image alone: particles (stones, chips, cells in
 a matrix or separated by dark gaps), layers (wood grain, sediment: stripes along one direction),
-a phase field (marble: regions and veins of a few colours) or none of these (the slice
+veins (marble's swirled bands and veins: phases laid out in sheets that change little along
+their course), a phase field (mottled regions of a few colours) or none of these (the slice
 optimisation then synthesizes it).
 
 >>> found = analyse(image)
@@ -18,7 +19,7 @@ from osmap_cli.solid.structure.profiles import ProfileStats, profile_stats
 from osmap_cli.solid.structure.segment import Segmenter, gaussian_blur, lab
 from osmap_kernels.structure import label_components, split_touching
 
-KINDS = ("particles", "layers", "field", "none")
+KINDS = ("particles", "layers", "veins", "field", "none")
 
 NETWORK_RADIUS = 3  # disc of the black top-hat that finds dark gaps up to about 6 px wide
 PERCOLATING = 0.7  # a matrix: its largest component holds at least this share of it
@@ -33,6 +34,9 @@ MIN_EDGE = 1.4  # profile outlines lie on edges: their mean gradient over the im
 MAX_SPLIT = 0.12  # split lines may complete a gap network, not make most of it
 PERIODIC = 0.2  # autocorrelation at the first peak across the stripes: a spacing worth naming
 FIELD_SEPARATION = 1.3  # between-phase over within-phase colour spread for a phase field
+SHEETS = 0.55  # ... whose layout varies this much less along its local stripes than across
+SHEET_LAG = 10.0  # px of the working resolution: the lag of that comparison
+SHEET_SIGMA = 2.0  # px: the structure tensor's scale giving each pixel's local direction
 WORKING_SIDE = 128  # smaller images are analysed enlarged to about this (the thresholds above
 MAX_FACTOR = 4  # are in pixels of this resolution)
 
@@ -122,6 +126,7 @@ class Analysis:
     lattice: tuple
     profiles: ProfileStats | None = None  # in pixels of the enlarged image (reader.factor)
     notes: tuple = field(default=())
+    sheetness: float | None = None  # phase layouts: variation along over across (veins: low)
 
     def report(self) -> list[str]:
         """Lines for --analyse and --verbose."""
@@ -138,6 +143,9 @@ class Analysis:
                          f"elongation {p.elongation:.2f}")
         lines.append(f"orientation: {self.angle:.0f} deg, coherence {self.coherence:.2f} "
                      f"(local {self.local_coherence:.2f})")
+        if self.sheetness is not None:
+            lines.append(f"sheets: the phases vary {self.sheetness:.2f} times as much along "
+                         f"their local direction as across it (veins at {SHEETS} or less)")
         if self.spacing > 0 and (self.kind == "layers" or self.spacing_strength >= PERIODIC):
             lines.append(f"layer spacing: {self.spacing:.1f} px "
                          f"(autocorrelation {self.spacing_strength:.2f})")
@@ -149,6 +157,8 @@ class Analysis:
                "orientation_deg": round(self.angle, 2), "coherence": round(self.coherence, 3)}
         if self.spacing > 0 and (self.kind == "layers" or self.spacing_strength >= PERIODIC):
             out["layer_spacing_px"] = round(self.spacing, 2)
+        if self.sheetness is not None:
+            out["sheetness"] = round(self.sheetness, 3)
         if self.profiles is not None:
             scaled = self.profiles.scaled(1.0 / self.reader.factor)
             out["particles"] = {k: round(float(v), 4) for k, v in scaled.figures().items()}
@@ -244,7 +254,9 @@ def analyse(image: np.ndarray, wrap: bool = False, phases: int | None = None) ->
                            "fractions": np.array([1 - mask.mean(), mask.mean()])},
                         profiles=stats)
     if _separation(lab(image), labels) >= FIELD_SEPARATION:
-        return Analysis("field", plain, small, **common)
+        sheetness = sheet_ratio(image, labels)
+        return Analysis("veins" if sheetness <= SHEETS else "field", plain, small,
+                        sheetness=sheetness, **common)
     return Analysis("none", plain, small, notes=("no separable phases",), **common)
 
 
@@ -262,3 +274,41 @@ def _separation(feats: np.ndarray, labels: np.ndarray) -> float:
                               for i in range(len(centres))]))
     between = np.sqrt(((centres - flat.mean(0)) ** 2).sum(1).mean())
     return float(between / max(within, 1e-9))
+
+
+def sheet_ratio(image: np.ndarray, labels: np.ndarray, wrap: bool = False) -> float:
+    """How much the phases' layout (field.latent) changes SHEET_LAG px along each pixel's local
+    stripe direction over how much it changes as far across it (mean squares): veins and
+    swirled bands, sheets in 3D, change little along their course; blobs and patches change
+    alike both ways."""
+    from osmap_cli.solid.structure.field import latent, phase_order
+
+    z = latent(image, labels, phase_order(labels, int(labels.max()) + 1), wrap)
+    feats = gaussian_blur(lab(image), 1.0, wrap)
+    jxx = jyy = jxy = 0.0
+    for c in range(feats.shape[2]):
+        gy, gx = np.gradient(feats[..., c])
+        jxx, jyy, jxy = jxx + gx * gx, jyy + gy * gy, jxy + gx * gy
+    j = gaussian_blur(np.stack([jxx, jyy, jxy], -1), SHEET_SIGMA, wrap)
+    theta = 0.5 * np.arctan2(2 * j[..., 2], j[..., 0] - j[..., 1])  # across (x right, y down)
+    nx, ny = np.cos(theta), np.sin(theta)
+    rows, cols = np.mgrid[0:z.shape[0], 0:z.shape[1]].astype(np.float64)
+    m = int(np.ceil(SHEET_LAG)) + 1
+    inner = (slice(m, -m), slice(m, -m)) if min(z.shape) > 4 * m else (slice(None),) * 2
+    lag = SHEET_LAG
+    across = (_bilinear(z, rows + lag * ny, cols + lag * nx, wrap) - z)[inner]
+    along = (_bilinear(z, rows + lag * nx, cols - lag * ny, wrap) - z)[inner]
+    return float(np.mean(along ** 2) / max(np.mean(across ** 2), 1e-12))
+
+
+def _bilinear(img: np.ndarray, r: np.ndarray, c: np.ndarray, wrap: bool) -> np.ndarray:
+    h, w = img.shape
+    if wrap:
+        r, c = r % h, c % w
+    else:
+        r, c = np.clip(r, 0, h - 1.001), np.clip(c, 0, w - 1.001)
+    r0, c0 = np.floor(r).astype(int), np.floor(c).astype(int)
+    fr, fc = r - r0, c - c0
+    r1, c1 = (r0 + 1) % h, (c0 + 1) % w
+    return ((1 - fr) * (1 - fc) * img[r0, c0] + (1 - fr) * fc * img[r0, c1]
+            + fr * (1 - fc) * img[r1, c0] + fr * fc * img[r1, c1])

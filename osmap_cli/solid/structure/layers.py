@@ -25,9 +25,9 @@ RING_SIDES = 0.35  # ... and the other families' stripes are at least this coher
 MIN_RUN = 1.0
 WOBBLE_LENGTH = 4.0  # the displacement's correlation length, in layer spacings
 MAX_CHAIN = 1 << 20
-STREAK_LENGTH = 0.7  # fibres: correlation across the grain, in layer spacings
-STREAK_STRETCH = 12.0  # ... and this many times longer along it
-STREAK_AMPLITUDE = 0.35  # ... displacement, in layer spacings
+PARALLEL = 30.0  # degrees: one exemplar's layers this near a slice family's plane are tilted
+TILT = 25.0  # ... this much about their grain, so that no family cuts along them (more
+#               makes the end face's fill copy the exemplar's straight grain in steps)
 
 
 @dataclass(frozen=True)
@@ -45,9 +45,7 @@ class LayerModel:
     wobble: float
     spacing: float
     extent: tuple = (0.0, 0.0)  # rings: the end exemplar's size (rows, cols), px
-    across: np.ndarray | None = None  # fibres: the direction (z, y, x) within the layers
-    #                                   across their grain (streaks vary fast along it only)
-    streaks: float = 0.0  # their displacement amplitude (voxels)
+    tilt: float = 0.0  # one exemplar: degrees the layers were turned about their grain
 
     @property
     def rings(self) -> bool:
@@ -154,10 +152,54 @@ def band_sequence(model: LayerModel, extent: float, seed: int):
     return np.array(starts), np.array(phases, np.int64)
 
 
-def layer_coordinate(shape, model: LayerModel, seed: int, wrap: bool) -> np.ndarray:
-    """float32 (Z, Y, X): u at every voxel centre, displaced by the wobble."""
+def periodic_normal(shape, normal, spacing: float):
+    """(normal', period): the direction nearest `normal` (z, y, x) along which planar bands
+    repeat across the faces of a volume of `shape`: u = normal' . x with normal'_d = k_d
+    period / shape_d for whole numbers k_d, |normal'| = 1, so u grows by whole periods across
+    each face. Of the wave numbers up to 4 per axis, the nearest direction whose period holds at
+    least two spacings (else the longest period)."""
+    n = np.asarray(normal, np.float64) / np.linalg.norm(normal)
+    size = np.asarray(shape, np.float64)
+    best, longest = None, None
+    for k in np.ndindex(9, 9, 9):
+        k = np.asarray(k, np.float64) - 4
+        if not k.any():
+            continue
+        g = k / size
+        period = 1.0 / np.linalg.norm(g)
+        cos = float(g @ n) * period
+        if cos <= 0:
+            continue
+        if period >= 2 * spacing and (best is None or cos > best[0] + 1e-12):
+            best = (cos, g * period, period)
+        if longest is None or period > longest[2] + 1e-9 or (
+                abs(period - longest[2]) <= 1e-9 and cos > longest[0]):
+            longest = (cos, g * period, period)
+    _, direction, period = best if best is not None else longest
+    return direction, float(period)
+
+
+def periodic_bands(model, period: float, seed: int):
+    """(starts, phases) of a band sequence (band_sequence) stretched to fill [0, period)
+    exactly, to be read at u modulo the period."""
+    starts, phases = band_sequence(model, period / 2, seed)
+    starts = (starts - starts[0]) * period / max(starts[-1] - starts[0], 1e-9)
+    return starts, phases
+
+
+def band_index(starts, phases, u, period: float | None = None) -> np.ndarray:
+    """The phase of the band every value of u falls in (u modulo `period` when given)."""
+    if period is not None:
+        u = np.mod(u, period)
+    return phases[np.clip(np.searchsorted(starts, u, side="right") - 1, 0, len(phases) - 1)]
+
+
+def layer_coordinate(shape, model: LayerModel, seed: int, wrap: bool):
+    """(u float32 (Z, Y, X) at every voxel centre, displaced by the wobble; the period of the
+    bands along u when they wrap (--tileable planar layers), else None)."""
     grids = np.meshgrid(*(np.arange(n, dtype=np.float32) + 0.5 - n / 2 for n in shape),
                         indexing="ij")
+    period = None
     if model.rings:
         # the axis as far from the end face's centre as in the end exemplar, in proportion to
         # the face's size when it is smaller (a smaller face shows the exemplar's framing)
@@ -166,23 +208,21 @@ def layer_coordinate(shape, model: LayerModel, seed: int, wrap: bool) -> np.ndar
         u = np.hypot(grids[dims[0]] - k[0] * model.centre[0],
                      grids[dims[1]] - k[1] * model.centre[1])
     else:
-        u = sum(float(model.normal[d]) * grids[d] for d in range(3))
+        normal = model.normal
+        if wrap:
+            normal, period = periodic_normal(shape, normal, model.spacing)
+        u = sum(float(normal[d]) * grids[d] for d in range(3))
     if model.wobble > 0:
         length = WOBBLE_LENGTH * model.spacing
         u = u + model.wobble * smooth_noise(shape, length, seed + 11, wrap)
-    if model.streaks > 0:
-        # fibres: a displacement that changes fast across the grain within the layers and
-        # slowly along the grain and the normal, so a cut parallel to the layers shows streaks
-        # along the grain instead of one flat band, and cuts across the layers keep them whole
-        u = u + model.streaks * smooth_noise(shape, STREAK_STRETCH * STREAK_LENGTH
-                                             * model.spacing, seed + 13, wrap, model.across,
-                                             1.0 / STREAK_STRETCH)
-    return u.astype(np.float32)
+    return u.astype(np.float32), period
 
 
 def build_layers(shape, model: LayerModel, seed: int, wrap: bool) -> np.ndarray:
     """int64 (Z, Y, X): the phase of every voxel."""
-    u = layer_coordinate(shape, model, seed, wrap)
+    u, period = layer_coordinate(shape, model, seed, wrap)
+    if period is not None:
+        return band_index(*periodic_bands(model, period, seed), u, period)
     extent = float(np.abs(u).max()) + 2 * model.spacing
     starts, phases = band_sequence(model, extent, seed)
     idx = np.clip(np.searchsorted(starts, u, side="right") - 1, 0, len(phases) - 1)
@@ -264,15 +304,25 @@ def fit_layers(images, labels, analyses, ex_of_axis) -> LayerModel:
         e = int(ex_of_axis[(ring[0] + 1) % 3])
         angle_ref, lum_ref = analyses[e].angle, lums[e]
     wobble = wobble_amplitude(lum_ref, angle_ref, spacing)
-    across, streaks = None, 0.0
-    if single:
-        # one exemplar shows the layers on every face: a face parallel to them gets the
-        # exemplar's streaks along its columns (the grain along the side faces' stripes)
+    tilt = 0.0
+    if single and np.abs(normal).max() > np.cos(np.radians(PARALLEL)):
+        # one exemplar shows the layers on every face, but layers along an axis would lie
+        # parallel to one slice family (one flat band there): turned TILT degrees about their
+        # grain (the side faces' stripe direction), two families show the exemplar's stripes
+        # along its direction and the third (the end grain) straight stripes across it; the
+        # bands (and their displacement) are made thinner so that the two show the exemplar's
+        # spacing (and waviness; `spacing` stays the spacing they show)
         grain = stripe_direction(analyses[0].angle, 1)
         grain = grain - (grain @ normal) * normal
         grain /= max(np.linalg.norm(grain), 1e-9)
-        across = np.cross(normal, grain)
-        streaks = STREAK_AMPLITUDE * spacing
+        side = np.cross(grain, normal)
+        turned = np.cos(np.radians(TILT)) * normal + np.sin(np.radians(TILT)) * side
+        across = normal - (normal @ grain) * grain  # family 1's in-plane stripe normal
+        shrink = abs(float(turned @ across)) / max(float(np.linalg.norm(across)), 1e-9)
+        lengths = tuple(x * shrink for x in lengths)
+        wobble *= shrink
+        normal = turned * (1 if turned[np.argmax(np.abs(turned))] > 0 else -1)
+        tilt = TILT
     extent = labels[int(ex_of_axis[ring[0]])].shape if ring is not None else (0.0, 0.0)
     return LayerModel(normal, axis, rel, lengths, trans, wobble, spacing,
-                      tuple(float(v) for v in extent), across, streaks)
+                      tuple(float(v) for v in extent), tilt)

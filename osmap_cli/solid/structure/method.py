@@ -1,7 +1,8 @@
 """The structure-first solid method's steps before and after the fill: analyse the exemplars
-and fit a model of the 3D structure they show (particles, layers or a phase field), build that
-structure for a volume, and finally match each phase's colours to the exemplar's. Exemplars
-with none of these structures are left to the slice optimisation (`plan(...).kind == "none"`).
+and fit a model of the 3D structure they show (particles, layers, veins or a phase field),
+build that structure for a volume, and finally match each phase's colours to the exemplar's.
+Exemplars with none of these structures are left to the slice optimisation
+(`plan(...).kind == "none"`).
 
 >>> found = plan([image], np.zeros(3, np.int64))
 >>> found.report()
@@ -21,6 +22,7 @@ from osmap_cli.solid.structure import analysis as an
 from osmap_cli.solid.structure import field as fd
 from osmap_cli.solid.structure import layers as ly
 from osmap_cli.solid.structure import particles as pt
+from osmap_cli.solid.structure import sheets as sh
 from osmap_cli.solid.structure.fill import match_phases, match_regions
 from osmap_cli.solid.structure.profiles import profile_ids
 from osmap_cli.solid.structure.segment import Segmenter, gaussian_blur, smooth_volume
@@ -68,7 +70,13 @@ class Plan:
         if isinstance(m, ly.LayerModel):
             where = (f"rings around the {'xyz'[m.axis]} axis" if m.rings else
                      "planar, normal (z, y, x) = " + ", ".join(f"{v:.2f}" for v in m.normal))
+            if m.tilt:
+                where += f" (turned {m.tilt:.0f} deg about the grain: no face along the layers)"
             return [f"layers: {where}, spacing {m.spacing:.1f} px, waviness {m.wobble:.1f} px"]
+        if isinstance(m, sh.SheetModel):
+            return ["veins: sheets normal (z, y, x) = " + ", ".join(f"{v:.2f}" for v in m.normal)
+                    + f", spacing {m.spacing * m.scale:.1f} px along u, perturbation "
+                    f"{m.amplitude:.1f} x {m.warp_length:.1f} px"]
         if isinstance(m, fd.FieldModel):
             return [f"field: phase order {list(m.order)}, sheets normal (z, y, x) = "
                     + ", ".join(f"{v:.2f}" for v in m.normal)
@@ -78,6 +86,12 @@ class Plan:
     def summary(self) -> dict:
         """A JSON-able record for provenance."""
         out = {"structure": self.kind, "analysis": [a.summary() for a in self.analyses]}
+        if isinstance(self.model, sh.SheetModel):
+            m = self.model
+            out["sheets"] = {"normal_zyx": [round(float(v), 4) for v in m.normal],
+                             "spacing_px": round(m.spacing * m.scale, 3),
+                             "perturbation": round(m.amplitude, 3),
+                             "warp_length_px": round(m.warp_length, 3)}
         if self.notes:
             out["notes"] = list(self.notes)
         return out
@@ -102,7 +116,11 @@ def plan(exemplars, ex_of_axis, structure: str = "auto", phases: int = 0, seed: 
             chosen = "layers"
         elif all(k == "particles" for k in kinds):
             chosen = "particles"
-        elif all(k in ("field", "particles", "layers") for k in kinds) and "field" in kinds:
+        elif (all(k in ("veins", "field", "particles", "layers") for k in kinds)
+              and kinds.count("veins") >= max(1, kinds.count("field"))):
+            chosen = "veins"
+        elif "field" in kinds and all(k in ("veins", "field", "particles", "layers")
+                                      for k in kinds):
             chosen = "field"
         else:
             chosen = "none"
@@ -121,6 +139,8 @@ def plan(exemplars, ex_of_axis, structure: str = "auto", phases: int = 0, seed: 
         result.colours = colours
         if chosen == "layers":
             result.model = ly.fit_layers(images, labels, analyses, result.ex_of_axis)
+        elif chosen == "veins":
+            result.model = sh.fit_sheets(labels, analyses, result.ex_of_axis, seed)
         else:
             result.model = fd.fit_field(images, labels, analyses, result.ex_of_axis, seed)
     result.seconds = time.perf_counter() - started
@@ -213,12 +233,17 @@ def build_structure(found: Plan, shape, seed: int, wrap: bool) -> Built:
                      built.owner.astype(np.int64), colours)
     if found.kind == "layers":
         labels = ly.build_layers(shape, found.model, seed, wrap)
+    elif found.kind == "veins":
+        labels = sh.build_sheets(shape, found.model, seed, wrap)
     else:
         labels = fd.build_field(shape, found.model, seed, wrap)
     k = len(found.colours)
     onehot = (labels[..., None] == np.arange(k)).astype(np.float32)
     coverage = smooth_volume(onehot, COVERAGE_SIGMA, wrap)
-    return Built(labels, found.colours[labels].astype(np.float32), coverage)
+    # the identity guide antialiased like the coverage: hard phase steps on the voxel grid
+    # would make the fill copy their staircases (axis-aligned edges)
+    identity = coverage @ found.colours.astype(np.float32)
+    return Built(labels, identity.astype(np.float32), coverage)
 
 
 def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np.ndarray:

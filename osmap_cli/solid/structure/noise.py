@@ -1,6 +1,7 @@
 """Smooth random fields for the structure: Gaussian noise filtered to a correlation length or
 to a given spectrum (FFT, periodic), generated on a coarse grid where the field is smooth and
-interpolated to the volume."""
+interpolated to the volume; and periodic noise that can be read at any point (for warped
+turbulence)."""
 
 from __future__ import annotations
 
@@ -22,13 +23,11 @@ def spectral_field(shape, amplitude, seed: int) -> np.ndarray:
     return field / std if std > 0 else field
 
 
-def smooth_noise(shape, length: float, seed: int, wrap: bool = False, along=None,
-                 stretch: float = 1.0) -> np.ndarray:
+def smooth_noise(shape, length: float, seed: int, wrap: bool = False) -> np.ndarray:
     """float32 (Z, Y, X): unit-variance Gaussian noise with a Gaussian correlation of about
-    `length` voxels (`stretch` times that in the direction `along` (z, y, x): below 1, shorter),
-    made on a grid min(length, stretch x length) / 4 coarser and interpolated (periodic with
-    wrap: the coarse grid divides the volume)."""
-    step = max(1.0, min(length, length * stretch) / 4.0)
+    `length` voxels, made on a grid length / 4 coarser and interpolated (periodic with wrap: the
+    coarse grid divides the volume)."""
+    step = max(1.0, length / 4.0)
     if wrap:
         coarse = tuple(max(4, int(round(n / step))) for n in shape)
     else:
@@ -38,10 +37,6 @@ def smooth_noise(shape, length: float, seed: int, wrap: bool = False, along=None
     def amplitude(kz, ky, kx):
         k = (sigma[0] * kz, sigma[1] * ky, sigma[2] * kx)  # cycles per correlation length
         k2 = k[0] ** 2 + k[1] ** 2 + k[2] ** 2
-        if along is not None and stretch != 1.0:
-            g = np.asarray(along, np.float64) / np.linalg.norm(along)
-            kg = g[0] * k[0] + g[1] * k[1] + g[2] * k[2]
-            k2 = k2 + (stretch ** 2 - 1.0) * kg ** 2
         return np.exp(-(np.pi ** 2) * k2)
 
     field = spectral_field(coarse, amplitude, seed).astype(np.float32)[..., None]
@@ -52,3 +47,40 @@ def smooth_noise(shape, length: float, seed: int, wrap: bool = False, along=None
     off = [(b - n) // 2 for b, n in zip(big, shape)]
     return np.ascontiguousarray(fine[off[0]:off[0] + shape[0], off[1]:off[1] + shape[1],
                                      off[2]:off[2] + shape[2]])
+
+
+class PeriodicNoise:
+    """Unit-variance Gaussian noise with a Gaussian correlation of about `length` voxels,
+    periodic over `period` voxels (z, y, x), that can be read at any point (trilinear on a grid
+    `length` / 4 coarse): for noise read at warped positions.
+
+    >>> noise = PeriodicNoise((64, 64, 64), 12.0, seed=3)
+    >>> values = noise.at(points)          # points (..., 3) in voxels (z, y, x)
+    """
+
+    def __init__(self, period, length: float, seed: int):
+        coarse = tuple(max(4, int(round(p / max(1.0, length / 4.0)))) for p in period)
+        self.step = np.array([p / c for p, c in zip(period, coarse)])
+        sigma = [length / s for s in self.step]
+
+        def amplitude(kz, ky, kx):
+            k2 = (sigma[0] * kz) ** 2 + (sigma[1] * ky) ** 2 + (sigma[2] * kx) ** 2
+            return np.exp(-(np.pi ** 2) * k2)
+
+        self.grid = spectral_field(coarse, amplitude, seed).astype(np.float32)
+
+    def at(self, points: np.ndarray) -> np.ndarray:
+        """float32 (...): the noise at `points` (..., 3), voxel coordinates (z, y, x)."""
+        g = self.grid
+        pos = points / self.step
+        base = np.floor(pos).astype(np.int64)
+        frac = (pos - base).astype(np.float32)
+        out = np.zeros(points.shape[:-1], np.float32)
+        for corner in range(8):
+            bits = [(corner >> d) & 1 for d in range(3)]
+            idx = [(base[..., d] + bits[d]) % g.shape[d] for d in range(3)]
+            w = np.ones(points.shape[:-1], np.float32)
+            for d in range(3):
+                w *= frac[..., d] if bits[d] else 1.0 - frac[..., d]
+            out += w * g[idx[0], idx[1], idx[2]]
+        return out
