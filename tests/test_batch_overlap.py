@@ -14,35 +14,24 @@ import threading
 from pathlib import Path
 
 import pytest
+from job_doubles import FileJob
 
 from osmap_cli import batch
-from osmap_cli.batch import Job, run_jobs
+from osmap_cli.batch import run_jobs
 from osmap_cli.errors import OsmapError
 
 FAST = ("--size", "32", "--preset", "fast", "--levels", "2")
 
 
 @dataclasses.dataclass(frozen=True)
-class _Meet(Job):
+class _Meet(FileJob):
     """Writes its name; its compute waits at `meeting` (a threading.Barrier) when given, so a
     run that never computes two jobs at once fails at the barrier."""
 
-    exemplar: str
-    target: str
     meeting: object = None
     fails: bool = False
     stops: bool = False  # its compute raises KeyboardInterrupt, as a latched Ctrl-C does
-    replace: bool = True
-    refused: str | None = None
-    progress: bool = False
     overlaps: bool = True
-
-    @property
-    def outputs(self) -> list[str]:
-        return [self.target]
-
-    def describe(self) -> dict:
-        return {"input": self.exemplar, "outputs": self.outputs}
 
     def read(self):
         if self.fails:
@@ -69,7 +58,7 @@ def _two_cores(monkeypatch):
 
 def test_two_jobs_compute_at_once_and_commit_in_order(tmp_path, capsys):
     meeting = threading.Barrier(2, timeout=10)
-    jobs = [_Meet(f"{n}.png", str(tmp_path / f"{n}.txt"), meeting) for n in "abcd"]
+    jobs = [_Meet(f"{n}.png", str(tmp_path / f"{n}.txt"), meeting=meeting) for n in "abcd"]
     assert run_jobs(jobs) == 0
     out, _ = capsys.readouterr()
     assert [line.split(" (")[0] for line in out.splitlines()] == [
@@ -83,8 +72,8 @@ def test_jobs_that_do_not_overlap_run_one_at_a_time(tmp_path):
     """One job that may not overlap keeps the whole batch in turn (here a barrier of two would
     never be met: a short timeout fails the computes)."""
     meeting = threading.Barrier(2, timeout=0.5)
-    jobs = [_Meet("a.png", str(tmp_path / "a.txt"), meeting),
-            _Meet("b.png", str(tmp_path / "b.txt"), meeting, overlaps=False)]
+    jobs = [_Meet("a.png", str(tmp_path / "a.txt"), meeting=meeting),
+            _Meet("b.png", str(tmp_path / "b.txt"), meeting=meeting, overlaps=False)]
     assert run_jobs(jobs, quiet=True) == 1
     assert not os.listdir(tmp_path)
 

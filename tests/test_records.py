@@ -13,9 +13,10 @@ import re
 from pathlib import Path
 
 import pytest
+from job_doubles import FileJob
 
 from osmap_cli import records
-from osmap_cli.batch import Job, _Reporter, run_jobs
+from osmap_cli.batch import _Reporter, run_jobs
 from osmap_cli.errors import OsmapError
 from osmap_cli.records import failed_record, job_record, run_caught
 
@@ -104,22 +105,10 @@ def test_a_quiet_reporter_prints_failures_only(capsys):
 
 
 @dataclasses.dataclass(frozen=True)
-class _Write(Job):
+class _Write(FileJob):
     """A job that writes the id of the process that ran it (or fails as told)."""
 
-    exemplar: str
-    target: str
     fails: str = ""  # "", "error" or "internal"
-    replace: bool = True
-    refused: str | None = None
-    progress: bool = False
-
-    @property
-    def outputs(self) -> list[str]:
-        return [self.target]
-
-    def describe(self) -> dict:
-        return {"input": self.exemplar, "outputs": self.outputs}
 
     def read(self):
         if self.fails == "error":
