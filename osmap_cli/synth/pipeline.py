@@ -12,7 +12,8 @@ from osmap_cli.synth.lattice import Lattice
 from osmap_cli.synth.options import SynthOptions
 from osmap_cli.synth.organise import organise
 from osmap_cli.synth.refine import refine, upsample
-from osmap_cli.synth.regular import level_lattice, resolve_lattice, wrapped
+from osmap_cli.synth.regular import (RegionLattices, guide_regions, level_lattice,
+                                     region_lattices, resolve_lattice, wrapped)
 from osmap_cli.synth.render import render, render_settings
 from osmap_cli.texture.features import appearance_features
 from osmap_cli.texture.levels import level_count
@@ -32,7 +33,8 @@ class SynthResult:
     pixels: np.ndarray
     positions: np.ndarray
     jacobian: np.ndarray | None = None  # float32 (H, W, 2, 2) with control fields, else None
-    lattice: Lattice | None = None  # the lattice the output keeps (--lattice), or None
+    # the lattice the output keeps (--lattice), one per region of a painted exemplar guide, or None
+    lattice: Lattice | RegionLattices | None = None
 
 
 @dataclass(frozen=True)
@@ -154,6 +156,7 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
         raise ValueError("control fields need method 'osmap'")
     if guide is not None and target_guide is None:
         raise ValueError("a guide needs a target_guide")
+    painted = guide is not None
     if target_guide is not None:
         if opts.method != "osmap":
             raise ValueError("guided synthesis needs method 'osmap'")
@@ -168,6 +171,8 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
                              f"{exemplar.shape[1]}x{exemplar.shape[0]}: they must match")
         opts = opts.replace(coarse_sweeps=opts.coarse_sweeps * GUIDED_COARSE_FACTOR)
     lattice = _lattice(opts, exemplar, fields is not None)
+    if painted and opts.lattice == "auto" and opts.method == "osmap" and fields is None:
+        lattice = _region_lattices(opts, exemplar, guide, lattice)
     if opts.method == "paper":
         from osmap_cli.synth.paper import synthesize_paper
         pos = synthesize_paper(exemplar.shape[:2], opts, progress=progress)
@@ -206,7 +211,9 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
     pyramid = build_pyramid(exemplar, levels)
     shapes = level_shapes(out_shape, levels)
     out_lattice = None
-    if lattice is not None and opts.tileable:
+    if isinstance(lattice, RegionLattices) and opts.tileable:
+        lattice = _wrapped_regions(lattice, out_shape, jac, opts.max_copy or min(out_shape))
+    elif lattice is not None and opts.tileable:
         out_lattice = wrapped(lattice, out_shape, jac, opts.max_copy or min(out_shape))
         lattice = lattice if out_lattice is not None else None
     pos, jac_field, _ = run_levels(LevelLoop(pyramid, shapes, jacobian_field, bounds, start,
@@ -227,3 +234,26 @@ def _lattice(opts: SynthOptions, exemplar: np.ndarray, fields: bool) -> Lattice 
                              "lattice needs one orientation and scale for the whole output)")
         return None
     return resolve_lattice(opts.lattice, exemplar)
+
+
+def _region_lattices(opts: SynthOptions, exemplar: np.ndarray, guide: np.ndarray,
+                     lattice: Lattice | None) -> Lattice | RegionLattices | None:
+    """With an exemplar guide painted in a few values (a map of materials), a lattice per
+    region, each read from that region alone: the two-material exemplar's lattice belongs to
+    one material at most, and a material beside it keeps its own (or none). Other guides:
+    `lattice`, the whole exemplar's."""
+    regions = guide_regions(guide)
+    if regions is None:
+        return lattice
+    per_region = region_lattices(opts.lattice, exemplar, regions)
+    return per_region if per_region.any() else None
+
+
+def _wrapped_regions(lattice: RegionLattices, out_shape, jac, span: float) -> RegionLattices | None:
+    """A tileable output's lattice per region (`wrapped`): a region whose lattice does not fit
+    a whole number of times across the output keeps none."""
+    outputs = tuple(None if lat is None else wrapped(lat, out_shape, jac, span)
+                    for lat in lattice.lattices)
+    lattices = tuple(lat if out is not None else None for lat, out in zip(lattice.lattices, outputs))
+    kept = RegionLattices(lattice.values, lattice.labels, lattices, outputs)
+    return kept if kept.any() else None
