@@ -12,8 +12,14 @@ from osmap_cli.synth.lattice import Lattice
 from osmap_cli.synth.options import SynthOptions
 from osmap_cli.synth.organise import organise
 from osmap_cli.synth.refine import refine, upsample
-from osmap_cli.synth.regular import (RegionLattices, guide_regions, level_lattice,
-                                     region_lattices, resolve_lattice, wrapped)
+from osmap_cli.synth.regular import (
+    RegionLattices,
+    guide_regions,
+    level_lattice,
+    region_lattices,
+    resolve_lattice,
+    wrapped,
+)
 from osmap_cli.synth.render import render, render_settings
 from osmap_cli.texture.features import appearance_features
 from osmap_cli.texture.levels import level_count
@@ -249,11 +255,13 @@ def _region_lattices(opts: SynthOptions, exemplar: np.ndarray, guide: np.ndarray
     return per_region if per_region.any() else None
 
 
-def _wrapped_regions(lattice: RegionLattices, out_shape, jac, span: float) -> RegionLattices | None:
+def _wrapped_regions(lattice: RegionLattices, out_shape, jac, span: float
+                     ) -> RegionLattices | None:
     """A tileable output's lattice per region (`wrapped`): a region whose lattice does not fit
     a whole number of times across the output keeps none."""
     outputs = tuple(None if lat is None else wrapped(lat, out_shape, jac, span)
                     for lat in lattice.lattices)
-    lattices = tuple(lat if out is not None else None for lat, out in zip(lattice.lattices, outputs))
+    lattices = tuple(lat if out is not None else None
+                     for lat, out in zip(lattice.lattices, outputs))
     kept = RegionLattices(lattice.values, lattice.labels, lattices, outputs)
     return kept if kept.any() else None

@@ -23,8 +23,14 @@ import numpy as np
 
 from osmap_cli.errors import OsmapError
 from osmap_cli.synth.lattice import Lattice, find_lattice, parse_lattice
-from osmap_kernels.lattice import (NO_LATTICE, NO_REGIONS, NO_TABLE, LatticeParams, phase_sums,
-                                   snap_field)
+from osmap_kernels.lattice import (
+    NO_LATTICE,
+    NO_REGIONS,
+    NO_TABLE,
+    LatticeParams,
+    phase_sums,
+    snap_field,
+)
 
 __all__ = ["BAND_LEFTOVER", "LATTICE_MIN_PERIOD", "LevelLattice", "RegionLattices",
            "atlas_phase", "describe", "guide_regions", "lattice_text", "leftover",
