@@ -55,6 +55,33 @@ def test_each_output_half_comes_from_its_material(materials):
     assert np.mean(ratios) < 1.3, ratios
 
 
+def test_each_painted_material_keeps_its_own_lattice(samples):
+    """A guide painted in a few values gives each material the lattice read from its own
+    pixels: the weave beside gravel keeps its 2D lattice, the gravel none. (The two-material
+    exemplar's autocorrelation reads vertical stripes 8 px apart, which, applied to the whole
+    output, put every gravel copy on an 8 px column.)"""
+    from osmap_cli.synth.regular import lattice_text
+
+    gravel = np.repeat(read_image(samples / "gravel.png").pixels[:64, :64], 3, axis=2)
+    weave = read_image(samples / "weave.png").pixels[:64, :64, :3]
+    exemplar = np.concatenate([gravel, weave], axis=1)
+    guide = np.zeros((64, 128), np.float32)
+    guide[:, 64:] = 1.0
+    result = synthesize(exemplar, SynthOptions(width=SIZE, height=SIZE, seed=1), guide=guide,
+                        target_guide=_halves())
+    gravel_lattice, weave_lattice = result.lattice.lattices
+    assert gravel_lattice is None and len(weave_lattice.vectors) == 2
+    assert lattice_text(result.lattice).startswith("guide 0: none; guide 1: ")
+    ys, xs = np.mgrid[:SIZE, :SIZE].astype(np.float64)
+    offset = result.positions - np.stack([ys, xs], axis=-1)
+    # the weave half: every copy on the weave's lattice, in one phase
+    right = offset[:, SIZE // 2 + MARGIN:] @ weave_lattice.dual().T
+    assert np.abs(np.exp(2j * np.pi * right).mean(axis=(0, 1))).min() > 0.95
+    # the gravel half: copies at any column (one 8 px phase for all of them: resultant 1.0)
+    left = offset[:, :SIZE // 2 - MARGIN, 1] / 7.99
+    assert np.abs(np.exp(2j * np.pi * left).mean()) < 0.9
+
+
 def test_the_target_guide_is_resized_to_the_output(materials):
     exemplar, guide, _, _ = materials
     small = _halves((10, 30))  # another size and aspect: stretched to the output
