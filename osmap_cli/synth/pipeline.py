@@ -15,6 +15,7 @@ from osmap_cli.synth.refine import refine, upsample
 from osmap_cli.synth.regular import (
     RegionLattices,
     guide_regions,
+    level_labels,
     level_lattice,
     region_lattices,
     resolve_lattice,
@@ -163,6 +164,7 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
     if guide is not None and target_guide is None:
         raise ValueError("a guide needs a target_guide")
     painted = guide is not None
+    regions = None
     if target_guide is not None:
         if opts.method != "osmap":
             raise ValueError("guided synthesis needs method 'osmap'")
@@ -176,9 +178,10 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
             raise ValueError(f"guide is {guide.shape[1]}x{guide.shape[0]}, the exemplar "
                              f"{exemplar.shape[1]}x{exemplar.shape[0]}: they must match")
         opts = opts.replace(coarse_sweeps=opts.coarse_sweeps * GUIDED_COARSE_FACTOR)
+        regions = guide_regions(guide) if painted and opts.method == "osmap" else None
     lattice = _lattice(opts, exemplar, fields is not None)
-    if painted and opts.lattice == "auto" and opts.method == "osmap" and fields is None:
-        lattice = _region_lattices(opts, exemplar, guide, lattice)
+    if regions is not None and opts.lattice == "auto" and fields is None:
+        lattice = _region_lattices(opts, exemplar, regions, lattice)
     if opts.method == "paper":
         from osmap_cli.synth.paper import synthesize_paper
         pos = synthesize_paper(exemplar.shape[:2], opts, progress=progress)
@@ -203,8 +206,12 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
         return valid_box(shape, reach, opts.patch_radius)
 
     def start(level, lo, hi, constraint):
-        pos = organise(pyramid[level].shape[:2], shapes[level], jac, lo, hi, opts,
-                       wrap=opts.tileable, seed=opts.seed)
+        if regions is not None:
+            pos = _regional_start(regions, pyramid[level].shape[:2], guides[level][1],
+                                  2 ** level, jac, lo, hi, opts)
+        else:
+            pos = organise(pyramid[level].shape[:2], shapes[level], jac, lo, hi, opts,
+                           wrap=opts.tileable, seed=opts.seed)
         if fields is None and np.allclose(jac, np.eye(2)):
             pos = np.rint(pos)
         return pos
@@ -242,15 +249,12 @@ def _lattice(opts: SynthOptions, exemplar: np.ndarray, fields: bool) -> Lattice 
     return resolve_lattice(opts.lattice, exemplar)
 
 
-def _region_lattices(opts: SynthOptions, exemplar: np.ndarray, guide: np.ndarray,
+def _region_lattices(opts: SynthOptions, exemplar: np.ndarray, regions,
                      lattice: Lattice | None) -> Lattice | RegionLattices | None:
-    """With an exemplar guide painted in a few values (a map of materials), a lattice per
-    region, each read from that region alone: the two-material exemplar's lattice belongs to
-    one material at most, and a material beside it keeps its own (or none). Other guides:
-    `lattice`, the whole exemplar's."""
-    regions = guide_regions(guide)
-    if regions is None:
-        return lattice
+    """With an exemplar guide painted in a few values (a map of materials: `regions`,
+    guide_regions' answer), a lattice per region, each read from that region alone: the
+    several-material exemplar's lattice belongs to one material at most, and a material
+    beside it keeps its own (or none)."""
     per_region = region_lattices(opts.lattice, exemplar, regions)
     return per_region if per_region.any() else None
 
@@ -265,3 +269,34 @@ def _wrapped_regions(lattice: RegionLattices, out_shape, jac, span: float
                      for lat, out in zip(lattice.lattices, outputs))
     kept = RegionLattices(lattice.values, lattice.labels, lattices, outputs)
     return kept if kept.any() else None
+
+
+def _regional_start(regions, source_shape, target, level_scale: int, jac, lo, hi,
+                    opts: SynthOptions) -> np.ndarray:
+    """The coarsest level's positions for an exemplar guide painted in a few values: an OS-Map
+    layout of each region's own positions (as if synthesizing that material alone), each
+    output pixel taking the layout of the region whose value is nearest its target guide. A
+    layout of the whole exemplar would mix the materials in its copies, and the guided sweeps
+    would then cut each half out of them in small pieces."""
+    values, labels = regions
+    labels = level_labels(labels, level_scale)
+    nearest = np.abs(np.asarray(target, np.float64)[..., None]
+                     - np.asarray(values)[None, None, :]).argmin(axis=2)
+    pos = np.zeros((*target.shape, 2), np.float32)
+    missing = np.ones(target.shape, bool)
+    for r in range(len(values)):
+        allowed = labels == r
+        box = allowed[int(np.ceil(lo[0])):int(hi[0]) + 1, int(np.ceil(lo[1])):int(hi[1]) + 1]
+        if not (nearest == r).any() or not box.any():
+            continue
+        rows, cols = np.flatnonzero(allowed.any(axis=1)), np.flatnonzero(allowed.any(axis=0))
+        shape = (rows[-1] - rows[0] + 1, cols[-1] - cols[0] + 1)
+        layout = organise(shape, target.shape, jac, lo, hi, opts, wrap=opts.tileable,
+                          seed=opts.seed, allowed=allowed)
+        pos[nearest == r] = layout[nearest == r]
+        missing &= nearest != r
+    if missing.any():  # a region with no position inside the valid box at this level
+        whole = organise(source_shape, target.shape, jac, lo, hi, opts, wrap=opts.tileable,
+                         seed=opts.seed)
+        pos[missing] = whole[missing]
+    return pos

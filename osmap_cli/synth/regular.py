@@ -33,7 +33,7 @@ from osmap_kernels.lattice import (
 )
 
 __all__ = ["BAND_LEFTOVER", "LATTICE_MIN_PERIOD", "LevelLattice", "RegionLattices",
-           "atlas_phase", "describe", "guide_regions", "lattice_text", "leftover",
+           "atlas_phase", "describe", "guide_regions", "lattice_text", "leftover", "level_labels",
            "level_lattice", "region_lattices", "resolve_lattice", "wrapped"]
 
 # a level follows the lattice once its shortest period spans this many exemplar pixels (at
@@ -248,19 +248,23 @@ def _regional(lattice: RegionLattices, level_scale: int, jac, pos: np.ndarray,
                for lat, out in zip(lattice.lattices, lattice.outputs)]
     if all(r is None for r in records):
         return None
-    # the level's pixel (i, j) covers finest pixels from (i, j) * level_scale on: its centre's
-    labels = lattice.labels
-    rows = np.minimum(np.arange(-(-labels.shape[0] // level_scale)) * level_scale
-                      + level_scale // 2, labels.shape[0] - 1)
-    cols = np.minimum(np.arange(-(-labels.shape[1] // level_scale)) * level_scale
-                      + level_scale // 2, labels.shape[1] - 1)
-    regions = np.ascontiguousarray(labels[rows][:, cols], np.int32)
+    regions = level_labels(lattice.labels, level_scale)
     table = np.array([_row(NO_LATTICE if r is None else r(0.0, 0.0)) for r in records])
     if not pinned_phase:
         sums = phase_sums(pos, NO_LATTICE, phases, table, regions)
         table = np.array([_row(NO_LATTICE if r is None else r(*_phase(s, r(0.0, 0.0).rank)))
                           for r, s in zip(records, sums)])
     return LevelLattice(NO_LATTICE, phases, np.ascontiguousarray(table, np.float64), regions)
+
+
+def level_labels(labels: np.ndarray, level_scale: int) -> np.ndarray:
+    """int32 region labels (h, w) at a pyramid level `level_scale` times coarser: each level
+    pixel (i, j) covers finest pixels from (i, j) * level_scale on, and takes its centre's."""
+    rows = np.minimum(np.arange(-(-labels.shape[0] // level_scale)) * level_scale
+                      + level_scale // 2, labels.shape[0] - 1)
+    cols = np.minimum(np.arange(-(-labels.shape[1] // level_scale)) * level_scale
+                      + level_scale // 2, labels.shape[1] - 1)
+    return np.ascontiguousarray(labels[rows][:, cols], np.int32)
 
 
 def _row(params: LatticeParams) -> list:
