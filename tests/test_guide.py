@@ -79,6 +79,42 @@ def test_each_painted_material_keeps_its_own_lattice(samples):
     assert np.abs(np.exp(2j * np.pi * right).mean(axis=(0, 1))).min() > 0.95
 
 
+def test_only_a_guide_of_a_few_large_regions_is_a_map_of_materials():
+    from osmap_cli.synth.regular import guide_regions
+
+    two = np.zeros((64, 64), np.float32)
+    two[:, 32:] = 1.0
+    values, labels = guide_regions(two)
+    assert values == (0.0, 1.0) and labels[0, 0] == 0 and labels[0, 63] == 1
+    assert guide_regions(np.tile(np.linspace(0, 1, 64, dtype=np.float32), (64, 1))) is None
+    assert guide_regions(np.zeros((64, 64), np.float32)) is None  # one value: nothing to map
+    speck = two.copy()
+    speck[:8, :8] = 0.5  # a third value on 64 pixels: not a material
+    assert guide_regions(speck) is None
+    nine = np.repeat(np.arange(9, dtype=np.float32), 64 * 64 // 9 + 1)[:64 * 64]
+    assert guide_regions(nine.reshape(64, 64) / 8) is None
+
+
+def test_a_painted_guide_starts_each_region_from_its_own_material():
+    """The coarsest level of a painted guide starts from an OS-Map layout of each region's own
+    positions: every output pixel at a position of the region its target guide picks (a
+    layout of the whole exemplar mixes the two: about half of each side elsewhere)."""
+    from osmap_cli.synth.pipeline import _regional_start
+    from osmap_cli.synth.regular import guide_regions
+
+    guide = np.zeros((32, 64), np.float32)
+    guide[:, 32:] = 1.0  # left half region 0, right half region 1; three horizontal bands
+    target = np.zeros((24, 24), np.float32)
+    target[8:16] = 1.0
+    lo, hi = np.array([2.0, 2.0]), np.array([29.0, 61.0])
+    opts = SynthOptions(width=24, height=24, seed=3).validated()
+    pos = _regional_start(guide_regions(guide), (32, 64), target, 1, np.eye(2), lo, hi, opts)
+    right = pos[..., 1] >= 31.5
+    assert (right == (target == 1.0)).all()
+    assert (pos[..., 0] >= lo[0]).all() and (pos[..., 1] <= hi[1]).all()
+    assert len(np.unique(np.rint(pos).reshape(-1, 2), axis=0)) > 100  # a layout, not a point
+
+
 def test_the_target_guide_is_resized_to_the_output(materials):
     exemplar, guide, _, _ = materials
     small = _halves((10, 30))  # another size and aspect: stretched to the output
