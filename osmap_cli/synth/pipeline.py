@@ -291,7 +291,13 @@ def _regional_start(regions, source_shape, target, level_scale: int, jac, lo, hi
             continue
         rows, cols = np.flatnonzero(allowed.any(axis=1)), np.flatnonzero(allowed.any(axis=0))
         shape = (rows[-1] - rows[0] + 1, cols[-1] - cols[0] + 1)
-        layout = organise(shape, target.shape, jac, lo, hi, opts, wrap=opts.tileable,
+        # the region's own valid box: its copies stop at its edges, as a material's alone do
+        # at the exemplar's, instead of running into the next material
+        first, last = np.array([rows[0], cols[0]]), np.array([rows[-1], cols[-1]])
+        edge = np.array(labels.shape) - 1
+        box_lo = np.minimum(np.maximum(lo, first + lo), hi)
+        box_hi = np.maximum(np.minimum(hi, last - (edge - hi)), box_lo)
+        layout = organise(shape, target.shape, jac, box_lo, box_hi, opts, wrap=opts.tileable,
                           seed=opts.seed, allowed=allowed)
         pos[nearest == r] = layout[nearest == r]
         missing &= nearest != r
