@@ -155,7 +155,9 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
     where the exemplar follows `guide` (float (h, w), the exemplar's size; default: the
     exemplar's blurred luminance, osmap_cli.synth.guide.auto_guide, and then target_guide is
     stretched to 0..1 like it), with weight
-    options.guide_weight (method osmap only).
+    options.guide_weight (method osmap only). A `guide` painted in a few values (a map of
+    materials, osmap_cli.synth.regular.guide_regions) makes each value's region a material of
+    its own: its own OS-Map layout at the start and its own lattice (or none).
     """
     opts = options.validated().with_quality()
     exemplar = np.ascontiguousarray(exemplar, np.float32)

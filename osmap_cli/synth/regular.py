@@ -8,7 +8,8 @@ text keep their spacing. From the first level whose shortest period spans LATTIC
 exemplar pixels, the field is moved to consistent positions (each copy by less than half a
 period), every candidate of the refinement is snapped to one, and whole-copy shifts keep to
 the lattice. The output's phase is the one most of the field already has (or 0 where pinned
-pixels fix it).
+pixels fix it). An exemplar guide painted in a few values (guided synthesis of several
+materials) gives each of its regions its own lattice, or none (RegionLattices).
 
 >>> lattice = resolve_lattice("12,0", exemplar)      # --lattice DX,DY: stripes 12 px apart
 >>> level = level_lattice(lattice, 4, np.eye(2), pos, lo, hi)
