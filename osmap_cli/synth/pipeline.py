@@ -299,11 +299,15 @@ def _regional_start(regions, source_shape, target, level_scale: int, jac, lo, hi
         edge = np.array(labels.shape) - 1
         box_lo = np.minimum(np.maximum(lo, first + lo), hi)
         box_hi = np.maximum(np.minimum(hi, last - (edge - hi)), box_lo)
+        inside = allowed[int(np.ceil(box_lo[0])):int(box_hi[0]) + 1,
+                         int(np.ceil(box_lo[1])):int(box_hi[1]) + 1]
+        if not inside.any():  # too small at this level for a window of its own
+            continue
         layout = organise(shape, target.shape, jac, box_lo, box_hi, opts, wrap=opts.tileable,
                           seed=opts.seed, allowed=allowed)
         pos[nearest == r] = layout[nearest == r]
         missing &= nearest != r
-    if missing.any():  # a region with no position inside the valid box at this level
+    if missing.any():  # a region with no position of its own at this level
         whole = organise(source_shape, target.shape, jac, lo, hi, opts, wrap=opts.tileable,
                          seed=opts.seed)
         pos[missing] = whole[missing]
