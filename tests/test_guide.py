@@ -79,6 +79,25 @@ def test_each_painted_material_keeps_its_own_lattice(samples):
     assert np.abs(np.exp(2j * np.pi * right).mean(axis=(0, 1))).min() > 0.95
 
 
+def test_a_small_painted_region_and_a_tileable_output(samples):
+    """A region too small at the coarsest level for a window of its own starts from the whole
+    exemplar's layout; a tileable output keeps each region's lattice fitted to its size (the
+    weave's 8 px diagonal period fits 64 px whole)."""
+    weave = read_image(samples / "weave.png").pixels[:64, :128, :3]
+    guide = np.zeros((64, 128), np.float32)
+    guide[16:48, 40:72] = 1.0  # 32x32
+    target = np.zeros((64, 64), np.float32)
+    target[20:44, 20:44] = 1.0
+    result = synthesize(weave, SynthOptions(width=64, height=64, seed=1), guide=guide,
+                        target_guide=target)
+    assert result.pixels.shape == (64, 64, 3)
+    guide[:] = 0.0
+    guide[:, 64:] = 1.0
+    result = synthesize(weave, SynthOptions(width=64, height=64, seed=1, tileable=True),
+                        guide=guide, target_guide=target)
+    assert all(out is not None for out in result.lattice.outputs)
+
+
 def test_only_a_guide_of_a_few_large_regions_is_a_map_of_materials():
     from osmap_cli.synth.regular import guide_regions
 
