@@ -80,9 +80,9 @@ def test_each_painted_material_keeps_its_own_lattice(samples):
 
 
 def test_a_small_painted_region_and_a_tileable_output(samples):
-    """A region too small at the coarsest level for a window of its own starts from the whole
-    exemplar's layout; a tileable output keeps each region's lattice fitted to its size (the
-    weave's 8 px diagonal period fits 64 px whole)."""
+    """The smallest region a painted guide may have (32x32) and a tileable output, which keeps
+    each region's lattice fitted to its size (the weave's 8 px diagonal period fits 64 px
+    whole)."""
     weave = read_image(samples / "weave.png").pixels[:64, :128, :3]
     guide = np.zeros((64, 128), np.float32)
     guide[16:48, 40:72] = 1.0  # 32x32
@@ -132,6 +132,11 @@ def test_a_painted_guide_starts_each_region_from_its_own_material():
     assert (right == (target == 1.0)).all()
     assert (pos[..., 0] >= lo[0]).all() and (pos[..., 1] <= hi[1]).all()
     assert len(np.unique(np.rint(pos).reshape(-1, 2), axis=0)) > 100  # a layout, not a point
+    # a region too narrow at this level for a window of its own: the whole exemplar's layout
+    labels = np.zeros((32, 64), np.int32)
+    labels[:, 30:32] = 1
+    pos = _regional_start(((0.0, 1.0), labels), (32, 64), target, 1, np.eye(2), lo, hi, opts)
+    assert np.isfinite(pos).all() and (pos[..., 1] <= hi[1]).all()
 
 
 def test_the_target_guide_is_resized_to_the_output(materials):
