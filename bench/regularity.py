@@ -8,8 +8,14 @@ the default `--lattice auto`. Each output is scored by the independent meters in
 lattice vectors and their multiples over the exemplar's own peak) and texmetrics.py (coh_mean,
 coh_p95, copy_side); the peers' outputs (../shared/design/peers/) by the same meters.
 
-    python bench/regularity.py [--names a,b] [--seeds 1] [--keep DIR] [--sheet PATH]
+    python bench/regularity.py [--names a,b] [--seeds 1] [--keep DIR] [--sheet PATH] [--probe]
 
+--probe also reads the meter's figures along the lattice the synthesis keeps (for stripes, the
+stripes' normal: across courses, planks or lines), and the meter's own vectors on the
+exemplar itself and on a 2x2 tiling of it: the autocorrelation at each multiple, and the long
+figure the exemplar's own decay gives (its multiples within half its size). The meter's
+formula (../shared/tools/regularity.py, imported): a vector that is a point on a ridge of the
+autocorrelation (anywhere along a course correlates) decays on the exemplar itself.
 --sheet writes a contact sheet of the first seed: per row the exemplar (enlarged to 256), the
 output without the lattice, with it, and the peer whose output keeps the lattice best (long).
 """
@@ -86,6 +92,54 @@ def measure(name: str, seed: int, folder: Path) -> dict:
     return {"lattice": lattice, "scores": scores, "best": best, "images": jobs}
 
 
+def _meter():
+    """The shared regularity meter as a module (numpy and OpenImageIO only)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "shared_regularity", SHARED_DIR / "tools" / "regularity.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _profile(meter, image: np.ndarray, vector) -> list[float]:
+    """The meter's autocorrelation of `image` at each multiple of `vector` that fits in half
+    the image (the best within a pixel, as the meter reads it)."""
+    r, (h, w) = meter.autocorr(image)
+    out, k = [], 1
+    while np.hypot(k * vector[0], k * vector[1]) <= min(h, w) / 2:
+        out.append(meter.value(r, (h, w), (k * vector[0], k * vector[1])))
+        k += 1
+    return out
+
+
+def probe(name: str, output: Path, without: Path, lattice) -> None:
+    """Print the meter's vectors on the exemplar, a 2x2 tiling and `output`, and the meter's
+    short / long along the kept lattice (the stripes' normal), also for the output made
+    `without` the lattice."""
+    meter = _meter()
+    exemplar = meter.read(str(exemplar_path(name)))
+    image = meter.read(str(output))
+    tiled = np.tile(exemplar, (2, 2))
+    found = meter.lattice(exemplar)
+    for t in found or []:
+        own = _profile(meter, exemplar, t[:2])
+        print(f"  meter vector {int(t[0])},{int(t[1])} (dy,dx), peak {t[2]:.3f}: exemplar "
+              f"{' '.join(f'{v:.2f}' for v in own)} (its own long {np.mean(own) / t[2]:.2f}); "
+              f"2x2 tiling {' '.join(f'{v:.2f}' for v in _profile(meter, tiled, t[:2]))}; "
+              f"output {' '.join(f'{v:.2f}' for v in _profile(meter, image, t[:2]))}")
+    if lattice is None:
+        return
+    for v in lattice.vectors:  # a stripes' vector is their normal
+        peak = meter.value(*meter.autocorr(exemplar), v)
+        for label, img in (("exemplar", exemplar), ("2x2 tiling", tiled), ("output", image),
+                           ("output without", meter.read(str(without)))):
+            prof = _profile(meter, img, v)
+            print(f"  kept lattice {v[0]:.1f},{v[1]:.1f} (dy,dx), {label}: short "
+                  f"{prof[0] / peak:.2f}, long {np.mean(prof) / peak:.2f}")
+
+
 def fmt(row: dict) -> str:
     return (f"{row['short']:.2f} / {row['long']:.2f} | {row['coh_mean']:.2f} "
             f"| {row['coh_p95']:.2f} | {row['copy_side']:.0f}")
@@ -94,6 +148,8 @@ def fmt(row: dict) -> str:
 def main() -> None:
     parser = measure_parser(__doc__, seeds="1")
     parser.add_argument("--names", default=",".join(REGULAR + SAMPLES))
+    parser.add_argument("--probe", action="store_true",
+                        help="the meter's figures along the kept lattice (see above)")
     args = parser.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
     rows = []
@@ -113,6 +169,8 @@ def main() -> None:
                         f"| {s[m['best']]['coh_mean']:.2f}" if m["best"] else "– | –")
                 print(f"| {name} | {seed} | {found} | {fmt(s['off'])} | {fmt(s['auto'])} "
                       f"| {peer} |", flush=True)
+                if args.probe:
+                    probe(name, m["images"]["auto"], m["images"]["off"], lattice)
                 if seed == seeds[0]:
                     rows.append([exemplar_path(name), m["images"]["off"], m["images"]["auto"],
                                  m["images"].get(m["best"])])

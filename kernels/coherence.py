@@ -18,7 +18,7 @@ from numba import njit
 
 from osmap_kernels.bands import run_bands
 from osmap_kernels.common import EIGHT_NEIGHBOURS, hash_uniform, neighbour, sample
-from osmap_kernels.lattice import NO_LATTICE, lattice_snap
+from osmap_kernels.lattice import NO_LATTICE, NO_REGIONS, NO_TABLE, lattice_snap, region_lattice
 
 # the exemplar phase map of a lattice of one exemplar (osmap_kernels.lattice): none
 _NO_PHASE = np.zeros((1, 1, 2), np.float32)
@@ -155,7 +155,7 @@ def _gather(src, feat, y, x, p, nb, nb_ok, buf):
 
 
 def refine_pass(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice=NO_LATTICE,
-                phase_map=_NO_PHASE):
+                phase_map=_NO_PHASE, table=NO_TABLE, regions=NO_REGIONS):
     """One red-black pass: for pixels of colour p.parity, write the best candidate into dst.
 
     src, dst float32[H, W, 2] (dst must be a copy of src); feat float32[h, w, F] exemplar
@@ -167,16 +167,17 @@ def refine_pass(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice=NO_LA
     2) for one exemplar): with a lattice (rank > 0), every
     candidate but the current position is first moved to the nearest position consistent with
     its pixel (lattice_snap) and dropped if that leaves [p.lo, p.hi]; src should be consistent
-    already (osmap_kernels.lattice.snap_field).
+    already (osmap_kernels.lattice.snap_field). table and regions (osmap_kernels.lattice): a
+    lattice per region of the exemplar instead, each candidate snapped to its own region's.
     Row bands run on osmap_kernels.bands' threads.
     """
     run_bands(_refine_rows, src.shape[0], src, dst, feat, jac, knn, occ, area, gex, gout, p,
-              lattice, phase_map)
+              lattice, phase_map, table, regions)
 
 
 @njit(cache=True, nogil=True)
-def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice, phase_map, y0,
-                 y1):
+def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice, phase_map, table,
+                 regions, y0, y1):
     """refine_pass on rows y0 <= y < y1 (reads src, writes only those rows of dst).
 
     Where the Jacobian is the identity and every position in a pixel's window is integral (the
@@ -313,12 +314,14 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice, pha
                         radius *= 0.5
                     cy = _clamp(np.floor(cy) + (by - np.floor(by)), p.lo[0], p.hi[0])
                     cx = _clamp(np.floor(cx) + (bx - np.floor(bx)), p.lo[1], p.hi[1])
-                if lattice.rank != 0 and c > 0:
-                    continuing = c <= n_listed and listed[c - 1, 2] != 0.0
-                    cy, cx = lattice_snap(cy, cx, y, x, lattice, phase_map,
-                                          lattice.keep if continuing else 0.5)
-                    if cy < p.lo[0] or cy > p.hi[0] or cx < p.lo[1] or cx > p.hi[1]:
-                        continue
+                if c > 0 and (lattice.rank != 0 or table.shape[0] != 0):
+                    lp = region_lattice(lattice, table, regions, cy, cx)
+                    if lp.rank != 0:
+                        continuing = c <= n_listed and listed[c - 1, 2] != 0.0
+                        cy, cx = lattice_snap(cy, cx, y, x, lp, phase_map,
+                                              lp.keep if continuing else 0.5)
+                        if cy < p.lo[0] or cy > p.hi[0] or cx < p.lo[1] or cx > p.hi[1]:
+                            continue
                 if fast and _integral_inside(cy, cx, r, h - 1, w - 1):
                     # _total_cost in place (see the docstring): the seam penalty ...
                     seam = 0.0

@@ -39,6 +39,31 @@ LatticeParams = namedtuple("LatticeParams", "rank n00 n01 n10 n11 t00 t01 t10 t1
 NO_LATTICE = LatticeParams(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
                            0.0, False, 0, 0.5)
 
+# A lattice per region of the exemplar (guided synthesis of several materials, each keeping its
+# own lattice or none):
+#   table    float64 (R, 18): row r holds region r's LatticeParams fields in order (integral
+#            1.0 or 0.0; rank 0: the region has no lattice, its positions never snap); a table
+#            of no rows: one lattice, the LatticeParams argument, for the whole exemplar
+#   regions  int32 (h, w): the region of each exemplar pixel (read only with a table)
+NO_TABLE = np.zeros((0, 18), np.float64)
+NO_REGIONS = np.zeros((1, 1), np.int32)
+
+
+@njit(cache=True, inline="always")
+def region_lattice(lp, table, regions, cy, cx):
+    """The lattice at exemplar position (cy, cx): its region's row of `table`, or lp when the
+    table has no rows."""
+    if table.shape[0] == 0:
+        return lp
+    iy = min(max(int(np.floor(cy + 0.5)), 0), regions.shape[0] - 1)
+    ix = min(max(int(np.floor(cx + 0.5)), 0), regions.shape[1] - 1)
+    r = regions[iy, ix]
+    return LatticeParams(np.int64(table[r, 0]), table[r, 1], table[r, 2], table[r, 3],
+                         table[r, 4], table[r, 5], table[r, 6], table[r, 7], table[r, 8],
+                         table[r, 9], table[r, 10], table[r, 11], table[r, 12], table[r, 13],
+                         table[r, 14], table[r, 15] != 0.0, np.int64(table[r, 16]),
+                         table[r, 17])
+
 
 @njit(cache=True, inline="always")
 def _wrapped(f):
@@ -114,15 +139,20 @@ def lattice_shift_ok(dy, dx, lp):
 
 
 @njit(cache=True)
-def snap_field(pos, lp, phase_map, lo0, hi0, lo1, hi1):
+def snap_field(pos, lattice, phase_map, lo0, hi0, lo1, hi1, table, regions):
     """Every position of pos (float32 (H, W, 2)) moved to the nearest consistent one inside
     [lo, hi]: the snapped one (a position within lp.keep pixels of its phase stays), else the
     nearest of its lattice neighbours one period either way that is inside; a position with
-    none inside stays. Returns a new field."""
+    none inside stays. lp: `lattice`, or the position's region's (table, regions). Returns a
+    new field."""
     H, W = pos.shape[0], pos.shape[1]
     out = pos.copy()
     for y in range(H):
         for x in range(W):
+            lp = region_lattice(lattice, table, regions, np.float64(pos[y, x, 0]),
+                                np.float64(pos[y, x, 1]))
+            if lp.rank == 0:
+                continue
             sy, sx = lattice_snap(np.float64(pos[y, x, 0]), np.float64(pos[y, x, 1]), y, x, lp,
                                   phase_map, lp.keep)
             if lo0 <= sy <= hi0 and lo1 <= sx <= hi1:
@@ -159,17 +189,27 @@ def snap_field(pos, lp, phase_map, lo0, hi0, lo1, hi1):
 
 
 @njit(cache=True)
-def phase_sums(pos, lp, phase_map):
+def phase_sums(pos, lattice, phase_map, table, regions):
     """sum over the field of exp(2 pi i f) per period vector, f = N s + phase_map[s] - G p (the
     output phase b = 0): the circular mean's numerator of the phase the field's copies sit
-    at. complex128 (2,)."""
-    out = np.zeros(2, np.complex128)
+    at. complex128 (R, 2): one row per region of `table` (each summing the positions in its
+    region, under its own lattice; the rows' b must be 0), or (1, 2) for `lattice`."""
+    out = np.zeros((max(table.shape[0], 1), 2), np.complex128)
     H, W = pos.shape[0], pos.shape[1]
     for y in range(H):
         for x in range(W):
-            w0, w1 = lattice_offsets(np.float64(pos[y, x, 0]), np.float64(pos[y, x, 1]), y, x,
-                                     lp, phase_map)
-            out[0] += np.exp(2j * np.pi * w0)
+            cy = np.float64(pos[y, x, 0])
+            cx = np.float64(pos[y, x, 1])
+            lp = region_lattice(lattice, table, regions, cy, cx)
+            if lp.rank == 0:
+                continue
+            r = 0
+            if table.shape[0] != 0:
+                iy = min(max(int(np.floor(cy + 0.5)), 0), regions.shape[0] - 1)
+                ix = min(max(int(np.floor(cx + 0.5)), 0), regions.shape[1] - 1)
+                r = regions[iy, ix]
+            w0, w1 = lattice_offsets(cy, cx, y, x, lp, phase_map)
+            out[r, 0] += np.exp(2j * np.pi * w0)
             if lp.rank == 2:
-                out[1] += np.exp(2j * np.pi * w1)
+                out[r, 1] += np.exp(2j * np.pi * w1)
     return out

@@ -55,6 +55,90 @@ def test_each_output_half_comes_from_its_material(materials):
     assert np.mean(ratios) < 1.3, ratios
 
 
+def test_each_painted_material_keeps_its_own_lattice(samples):
+    """A guide painted in a few values gives each material the lattice read from its own
+    pixels: the weave beside gravel keeps its 2D lattice, the gravel none. (The two-material
+    exemplar's autocorrelation reads vertical stripes 8 px apart, which, applied to the whole
+    output, would put every gravel copy on an 8 px column.)"""
+    from osmap_cli.synth.regular import lattice_text
+
+    gravel = np.repeat(read_image(samples / "gravel.png").pixels[:64, :64], 3, axis=2)
+    weave = read_image(samples / "weave.png").pixels[:64, :64, :3]
+    exemplar = np.concatenate([gravel, weave], axis=1)
+    guide = np.zeros((64, 128), np.float32)
+    guide[:, 64:] = 1.0
+    result = synthesize(exemplar, SynthOptions(width=SIZE, height=SIZE, seed=1), guide=guide,
+                        target_guide=_halves())
+    gravel_lattice, weave_lattice = result.lattice.lattices
+    assert gravel_lattice is None and len(weave_lattice.vectors) == 2
+    assert lattice_text(result.lattice).startswith("guide 0: none; guide 1: ")
+    ys, xs = np.mgrid[:SIZE, :SIZE].astype(np.float64)
+    offset = result.positions - np.stack([ys, xs], axis=-1)
+    # the weave half: every copy on the weave's lattice, in one phase
+    right = offset[:, SIZE // 2 + MARGIN:] @ weave_lattice.dual().T
+    assert np.abs(np.exp(2j * np.pi * right).mean(axis=(0, 1))).min() > 0.95
+
+
+def test_a_small_painted_region_and_a_tileable_output(samples):
+    """The smallest region a painted guide may have (32x32) and a tileable output, which keeps
+    each region's lattice fitted to its size (the weave's 8 px diagonal period fits 64 px
+    whole)."""
+    weave = read_image(samples / "weave.png").pixels[:64, :128, :3]
+    guide = np.zeros((64, 128), np.float32)
+    guide[16:48, 40:72] = 1.0  # 32x32
+    target = np.zeros((64, 64), np.float32)
+    target[20:44, 20:44] = 1.0
+    result = synthesize(weave, SynthOptions(width=64, height=64, seed=1), guide=guide,
+                        target_guide=target)
+    assert result.pixels.shape == (64, 64, 3)
+    guide[:] = 0.0
+    guide[:, 64:] = 1.0
+    result = synthesize(weave, SynthOptions(width=64, height=64, seed=1, tileable=True),
+                        guide=guide, target_guide=target)
+    assert all(out is not None for out in result.lattice.outputs)
+
+
+def test_only_a_guide_of_a_few_large_regions_is_a_map_of_materials():
+    from osmap_cli.synth.regular import guide_regions
+
+    two = np.zeros((64, 64), np.float32)
+    two[:, 32:] = 1.0
+    values, labels = guide_regions(two)
+    assert values == (0.0, 1.0) and labels[0, 0] == 0 and labels[0, 63] == 1
+    assert guide_regions(np.tile(np.linspace(0, 1, 64, dtype=np.float32), (64, 1))) is None
+    assert guide_regions(np.zeros((64, 64), np.float32)) is None  # one value: nothing to map
+    speck = two.copy()
+    speck[:8, :8] = 0.5  # a third value on 64 pixels: not a material
+    assert guide_regions(speck) is None
+    nine = np.repeat(np.arange(9, dtype=np.float32), 64 * 64 // 9 + 1)[:64 * 64]
+    assert guide_regions(nine.reshape(64, 64) / 8) is None
+
+
+def test_a_painted_guide_starts_each_region_from_its_own_material():
+    """The coarsest level of a painted guide starts from an OS-Map layout of each region's own
+    positions: every output pixel at a position of the region its target guide picks (a
+    layout of the whole exemplar mixes the two: about half of each side elsewhere)."""
+    from osmap_cli.synth.pipeline import _regional_start
+    from osmap_cli.synth.regular import guide_regions
+
+    guide = np.zeros((32, 64), np.float32)
+    guide[:, 32:] = 1.0  # left half region 0, right half region 1; three horizontal bands
+    target = np.zeros((24, 24), np.float32)
+    target[8:16] = 1.0
+    lo, hi = np.array([2.0, 2.0]), np.array([29.0, 61.0])
+    opts = SynthOptions(width=24, height=24, seed=3).validated()
+    pos = _regional_start(guide_regions(guide), (32, 64), target, 1, np.eye(2), lo, hi, opts)
+    right = pos[..., 1] >= 31.5
+    assert (right == (target == 1.0)).all()
+    assert (pos[..., 0] >= lo[0]).all() and (pos[..., 1] <= hi[1]).all()
+    assert len(np.unique(np.rint(pos).reshape(-1, 2), axis=0)) > 100  # a layout, not a point
+    # a region too narrow at this level for a window of its own: the whole exemplar's layout
+    labels = np.zeros((32, 64), np.int32)
+    labels[:, 30:32] = 1
+    pos = _regional_start(((0.0, 1.0), labels), (32, 64), target, 1, np.eye(2), lo, hi, opts)
+    assert np.isfinite(pos).all() and (pos[..., 1] <= hi[1]).all()
+
+
 def test_the_target_guide_is_resized_to_the_output(materials):
     exemplar, guide, _, _ = materials
     small = _halves((10, 30))  # another size and aspect: stretched to the output

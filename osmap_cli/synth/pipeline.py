@@ -12,7 +12,15 @@ from osmap_cli.synth.lattice import Lattice
 from osmap_cli.synth.options import SynthOptions
 from osmap_cli.synth.organise import organise
 from osmap_cli.synth.refine import refine, upsample
-from osmap_cli.synth.regular import level_lattice, resolve_lattice, wrapped
+from osmap_cli.synth.regular import (
+    RegionLattices,
+    guide_regions,
+    level_labels,
+    level_lattice,
+    region_lattices,
+    resolve_lattice,
+    wrapped,
+)
 from osmap_cli.synth.render import render, render_settings
 from osmap_cli.texture.features import appearance_features
 from osmap_cli.texture.levels import level_count
@@ -32,7 +40,8 @@ class SynthResult:
     pixels: np.ndarray
     positions: np.ndarray
     jacobian: np.ndarray | None = None  # float32 (H, W, 2, 2) with control fields, else None
-    lattice: Lattice | None = None  # the lattice the output keeps (--lattice), or None
+    # the lattice the output keeps (--lattice), one per region of a painted exemplar guide, or None
+    lattice: Lattice | RegionLattices | None = None
 
 
 @dataclass(frozen=True)
@@ -146,7 +155,9 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
     where the exemplar follows `guide` (float (h, w), the exemplar's size; default: the
     exemplar's blurred luminance, osmap_cli.synth.guide.auto_guide, and then target_guide is
     stretched to 0..1 like it), with weight
-    options.guide_weight (method osmap only).
+    options.guide_weight (method osmap only). A `guide` painted in a few values (a map of
+    materials, osmap_cli.synth.regular.guide_regions) makes each value's region a material of
+    its own: its own OS-Map layout at the start and its own lattice (or none).
     """
     opts = options.validated().with_quality()
     exemplar = np.ascontiguousarray(exemplar, np.float32)
@@ -154,6 +165,8 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
         raise ValueError("control fields need method 'osmap'")
     if guide is not None and target_guide is None:
         raise ValueError("a guide needs a target_guide")
+    painted = guide is not None
+    regions = None
     if target_guide is not None:
         if opts.method != "osmap":
             raise ValueError("guided synthesis needs method 'osmap'")
@@ -167,7 +180,10 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
             raise ValueError(f"guide is {guide.shape[1]}x{guide.shape[0]}, the exemplar "
                              f"{exemplar.shape[1]}x{exemplar.shape[0]}: they must match")
         opts = opts.replace(coarse_sweeps=opts.coarse_sweeps * GUIDED_COARSE_FACTOR)
+        regions = guide_regions(guide) if painted and opts.method == "osmap" else None
     lattice = _lattice(opts, exemplar, fields is not None)
+    if regions is not None and opts.lattice == "auto" and fields is None:
+        lattice = _region_lattices(opts, exemplar, regions, lattice)
     if opts.method == "paper":
         from osmap_cli.synth.paper import synthesize_paper
         pos = synthesize_paper(exemplar.shape[:2], opts, progress=progress)
@@ -192,8 +208,12 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
         return valid_box(shape, reach, opts.patch_radius)
 
     def start(level, lo, hi, constraint):
-        pos = organise(pyramid[level].shape[:2], shapes[level], jac, lo, hi, opts,
-                       wrap=opts.tileable, seed=opts.seed)
+        if regions is not None:
+            pos = _regional_start(regions, pyramid[level].shape[:2], guides[level][1],
+                                  2 ** level, jac, lo, hi, opts)
+        else:
+            pos = organise(pyramid[level].shape[:2], shapes[level], jac, lo, hi, opts,
+                           wrap=opts.tileable, seed=opts.seed)
         if fields is None and np.allclose(jac, np.eye(2)):
             pos = np.rint(pos)
         return pos
@@ -206,7 +226,9 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
     pyramid = build_pyramid(exemplar, levels)
     shapes = level_shapes(out_shape, levels)
     out_lattice = None
-    if lattice is not None and opts.tileable:
+    if isinstance(lattice, RegionLattices) and opts.tileable:
+        lattice = _wrapped_regions(lattice, out_shape, jac, opts.max_copy or min(out_shape))
+    elif lattice is not None and opts.tileable:
         out_lattice = wrapped(lattice, out_shape, jac, opts.max_copy or min(out_shape))
         lattice = lattice if out_lattice is not None else None
     pos, jac_field, _ = run_levels(LevelLoop(pyramid, shapes, jacobian_field, bounds, start,
@@ -227,3 +249,66 @@ def _lattice(opts: SynthOptions, exemplar: np.ndarray, fields: bool) -> Lattice 
                              "lattice needs one orientation and scale for the whole output)")
         return None
     return resolve_lattice(opts.lattice, exemplar)
+
+
+def _region_lattices(opts: SynthOptions, exemplar: np.ndarray, regions,
+                     lattice: Lattice | None) -> Lattice | RegionLattices | None:
+    """With an exemplar guide painted in a few values (a map of materials: `regions`,
+    guide_regions' answer), a lattice per region, each read from that region alone: the
+    several-material exemplar's lattice belongs to one material at most, and a material
+    beside it keeps its own (or none)."""
+    per_region = region_lattices(opts.lattice, exemplar, regions)
+    return per_region if per_region.any() else None
+
+
+def _wrapped_regions(lattice: RegionLattices, out_shape, jac, span: float
+                     ) -> RegionLattices | None:
+    """A tileable output's lattice per region (`wrapped`): a region whose lattice does not fit
+    a whole number of times across the output keeps none."""
+    outputs = tuple(None if lat is None else wrapped(lat, out_shape, jac, span)
+                    for lat in lattice.lattices)
+    lattices = tuple(lat if out is not None else None
+                     for lat, out in zip(lattice.lattices, outputs))
+    kept = RegionLattices(lattice.values, lattice.labels, lattices, outputs)
+    return kept if kept.any() else None
+
+
+def _regional_start(regions, source_shape, target, level_scale: int, jac, lo, hi,
+                    opts: SynthOptions) -> np.ndarray:
+    """The coarsest level's positions for an exemplar guide painted in a few values: an OS-Map
+    layout of each region's own positions (as if synthesizing that material alone), each
+    output pixel taking the layout of the region whose value is nearest its target guide. A
+    layout of the whole exemplar would mix the materials in its copies, and the guided sweeps
+    would then cut each half out of them in small pieces."""
+    values, labels = regions
+    labels = level_labels(labels, level_scale)
+    nearest = np.abs(np.asarray(target, np.float64)[..., None]
+                     - np.asarray(values)[None, None, :]).argmin(axis=2)
+    pos = np.zeros((*target.shape, 2), np.float32)
+    missing = np.ones(target.shape, bool)
+    for r in range(len(values)):
+        allowed = labels == r
+        box = allowed[int(np.ceil(lo[0])):int(hi[0]) + 1, int(np.ceil(lo[1])):int(hi[1]) + 1]
+        if not (nearest == r).any() or not box.any():
+            continue
+        rows, cols = np.flatnonzero(allowed.any(axis=1)), np.flatnonzero(allowed.any(axis=0))
+        shape = (rows[-1] - rows[0] + 1, cols[-1] - cols[0] + 1)
+        # the region's own valid box: its copies stop at its edges, as a material's alone do
+        # at the exemplar's, instead of running into the next material
+        first, last = np.array([rows[0], cols[0]]), np.array([rows[-1], cols[-1]])
+        edge = np.array(labels.shape) - 1
+        box_lo = np.minimum(np.maximum(lo, first + lo), hi)
+        box_hi = np.maximum(np.minimum(hi, last - (edge - hi)), box_lo)
+        inside = allowed[int(np.ceil(box_lo[0])):int(box_hi[0]) + 1,
+                         int(np.ceil(box_lo[1])):int(box_hi[1]) + 1]
+        if not inside.any():  # too small at this level for a window of its own
+            continue
+        layout = organise(shape, target.shape, jac, box_lo, box_hi, opts, wrap=opts.tileable,
+                          seed=opts.seed, allowed=allowed)
+        pos[nearest == r] = layout[nearest == r]
+        missing &= nearest != r
+    if missing.any():  # a region with no position of its own at this level
+        whole = organise(source_shape, target.shape, jac, lo, hi, opts, wrap=opts.tileable,
+                         seed=opts.seed)
+        pos[missing] = whole[missing]
+    return pos

@@ -79,7 +79,7 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
                 refine_pass(pos, out, feat, jac_field, knn, occ, area, gex, gout, params)
             else:
                 refine_pass(pos, out, feat, jac_field, knn, occ, area, gex, gout, params,
-                            lattice.params, lattice.phase_map)
+                            lattice.params, lattice.phase_map, lattice.table, lattice.regions)
             pos = out if constraint is None else constraint.pin(out)
         if opts.align > 0 and sweep < sweeps - 1:
             # the last sweep settles the borders of the copies' final placement
@@ -88,6 +88,9 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
                 hi=np.asarray(hi, np.float64), seam=seam, max_area=float(max_area),
                 reach=align_reach(opts.align, level_scale, coarsest_scale),
                 lattice=NO_LATTICE if lattice is None else lattice.params))
+            if lattice is not None and lattice.regional:
+                # shifts were free (each region its own lattice): back onto each one's
+                pos = lattice.snap(pos, lo, hi)
             if constraint is not None:
                 pos = constraint.pin(pos)
         if progress is not None:

@@ -8,7 +8,8 @@ text keep their spacing. From the first level whose shortest period spans LATTIC
 exemplar pixels, the field is moved to consistent positions (each copy by less than half a
 period), every candidate of the refinement is snapped to one, and whole-copy shifts keep to
 the lattice. The output's phase is the one most of the field already has (or 0 where pinned
-pixels fix it).
+pixels fix it). An exemplar guide painted in a few values (guided synthesis of several
+materials) gives each of its regions its own lattice, or none (RegionLattices).
 
 >>> lattice = resolve_lattice("12,0", exemplar)      # --lattice DX,DY: stripes 12 px apart
 >>> level = level_lattice(lattice, 4, np.eye(2), pos, lo, hi)
@@ -17,16 +18,24 @@ pixels fix it).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from osmap_cli.errors import OsmapError
 from osmap_cli.synth.lattice import Lattice, find_lattice, parse_lattice
-from osmap_kernels.lattice import LatticeParams, phase_sums, snap_field
+from osmap_kernels.lattice import (
+    NO_LATTICE,
+    NO_REGIONS,
+    NO_TABLE,
+    LatticeParams,
+    phase_sums,
+    snap_field,
+)
 
-__all__ = ["BAND_LEFTOVER", "LATTICE_MIN_PERIOD", "LevelLattice", "atlas_phase", "describe",
-           "lattice_text", "leftover", "level_lattice", "resolve_lattice", "wrapped"]
+__all__ = ["BAND_LEFTOVER", "LATTICE_MIN_PERIOD", "LevelLattice", "RegionLattices",
+           "atlas_phase", "describe", "guide_regions", "lattice_text", "leftover", "level_labels",
+           "level_lattice", "region_lattices", "resolve_lattice", "wrapped"]
 
 # a level follows the lattice once its shortest period spans this many exemplar pixels (at
 # coarser levels a period is a pixel or two, which integral positions cannot resolve)
@@ -41,6 +50,51 @@ BAND_LEFTOVER = 1.0
 # copies of --max-copy pixels by at most this much (exemplar pixels) against one another
 WRAP_DRIFT = 0.5
 _NO_PHASE = np.zeros((1, 1, 2), np.float32)
+# an exemplar guide of at most this many values, each covering at least REGION_MIN_AREA
+# pixels, is a painted map of materials: each value's region keeps its own lattice
+MAX_REGIONS = 8
+REGION_MIN_AREA = 32 * 32
+
+
+@dataclass(frozen=True)
+class RegionLattices:
+    """A lattice per region of the exemplar (guided synthesis of several materials): values,
+    the exemplar guide's value of each region; labels, int32 (h, w) each exemplar pixel's
+    region; lattices, each region's Lattice or None; outputs, each region's output lattice
+    where it differs from the exemplar's (a tileable output: `wrapped`), else None."""
+
+    values: tuple
+    labels: np.ndarray
+    lattices: tuple
+    outputs: tuple
+
+    def any(self) -> bool:
+        return any(lat is not None for lat in self.lattices)
+
+
+def guide_regions(guide: np.ndarray) -> tuple[tuple, np.ndarray] | None:
+    """(values, int32 labels (h, w)) when the exemplar guide is a map of a few materials (2 to
+    MAX_REGIONS values, each on at least REGION_MIN_AREA pixels), else None (a gradient, a
+    height map, a luminance)."""
+    guide = np.asarray(guide, np.float32)
+    values, labels, counts = np.unique(guide, return_inverse=True, return_counts=True)
+    if not 2 <= len(values) <= MAX_REGIONS or counts.min() < REGION_MIN_AREA:
+        return None
+    return tuple(float(v) for v in values), labels.reshape(guide.shape).astype(np.int32)
+
+
+def region_lattices(value: str, exemplar: np.ndarray, regions) -> RegionLattices:
+    """Each region's lattice (`regions`: guide_regions' answer), read from the region's own
+    pixels (the bounding box of the region, its other pixels left out), as --lattice `value`
+    (auto or off) asks."""
+    values, labels = regions
+    found = []
+    for r in range(len(values)):
+        mask = labels == r
+        rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+        box = slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1)
+        found.append(resolve_lattice(value, exemplar[box], mask[box]))
+    return RegionLattices(values, labels, tuple(found), (None,) * len(values))
 
 
 def resolve_lattice(value: str, exemplar: np.ndarray, known: np.ndarray | None = None
@@ -58,15 +112,23 @@ def resolve_lattice(value: str, exemplar: np.ndarray, known: np.ndarray | None =
         raise OsmapError(f"--lattice {value}: {exc}") from None
 
 
-def lattice_text(lattice: Lattice | None) -> str:
-    """The lattice as provenance records it: 'none', or the vectors as --lattice takes them."""
+def lattice_text(lattice: Lattice | RegionLattices | None) -> str:
+    """The lattice as provenance records it: 'none', or the vectors as --lattice takes them
+    (a lattice per guide region: 'guide 0: none; guide 1: 0.00,12.00')."""
+    if isinstance(lattice, RegionLattices):
+        return "; ".join(f"guide {v:g}: {lattice_text(lat)}"
+                         for v, lat in zip(lattice.values, lattice.lattices))
     if lattice is None:
         return "none"
     return ":".join(f"{v[1]:.2f},{v[0]:.2f}" for v in lattice.vectors)
 
 
-def describe(lattice: Lattice | None) -> str:
-    """One phrase for a report: 'none', 'stripes every 12.9 px (--lattice 0.2,12.9)', ..."""
+def describe(lattice: Lattice | RegionLattices | None) -> str:
+    """One phrase for a report: 'none', 'stripes every 12.9 px (--lattice 0.2,12.9)', ...
+    (a lattice per guide region: 'guide 0: none; guide 1: stripes ...')."""
+    if isinstance(lattice, RegionLattices):
+        return "; ".join(f"guide {v:g}: {describe(lat)}"
+                         for v, lat in zip(lattice.values, lattice.lattices))
     if lattice is None:
         return "none"
     flag = lattice_text(lattice)
@@ -104,25 +166,53 @@ class LevelLattice:
 
     params: LatticeParams
     phase_map: np.ndarray  # float32 (h, w, 2): each exemplar's phase in an atlas; or (1, 1, 2)
+    # a lattice per region of the exemplar (osmap_kernels.lattice): float64 (R, 18) and int32
+    # (h, w); no rows: `params` everywhere
+    table: np.ndarray = field(default_factory=lambda: NO_TABLE)
+    regions: np.ndarray = field(default_factory=lambda: NO_REGIONS)
+
+    @property
+    def regional(self) -> bool:
+        return self.table.shape[0] != 0
 
     def snap(self, pos: np.ndarray, lo, hi) -> np.ndarray:
         """pos (float32 (H, W, 2)) with every position moved to a consistent one in [lo, hi]."""
         return snap_field(np.ascontiguousarray(pos, np.float32), self.params, self.phase_map,
-                          float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
+                          float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]), self.table,
+                          self.regions)
 
 
-def level_lattice(lattice: Lattice | None, level_scale: int, jac, pos: np.ndarray, lo, hi,
-                  phase_map: np.ndarray | None = None, pinned_phase: bool = False,
-                  output: Lattice | None = None
+def level_lattice(lattice: Lattice | RegionLattices | None, level_scale: int, jac,
+                  pos: np.ndarray, lo, hi, phase_map: np.ndarray | None = None,
+                  pinned_phase: bool = False, output: Lattice | None = None
                   ) -> LevelLattice | None:
     """The lattice at a level `level_scale` times coarser than the exemplar, or None before its
     periods are long enough (LATTICE_MIN_PERIOD). jac: the uniform output-to-exemplar
     Jacobian; pos: the level's current positions, whose prevailing phase the output takes
     (pinned_phase: phase 0, the one kept pixels at their own positions have); phase_map:
     float32 (h, w, 2) exemplar phases (an atlas); output: the output's own lattice when it
-    differs from the exemplar's (a tileable output: `wrapped`)."""
+    differs from the exemplar's (a tileable output: `wrapped`). A RegionLattices gives each
+    region its own lattice and phase (the positions in that region's prevailing one)."""
     if lattice is None:
         return None
+    phases = _NO_PHASE if phase_map is None else np.ascontiguousarray(phase_map, np.float32)
+    pos = np.ascontiguousarray(pos, np.float32)
+    if isinstance(lattice, RegionLattices):
+        return _regional(lattice, level_scale, jac, pos, phases, pinned_phase)
+    record = _level_record(lattice, level_scale, jac, output, phase_map is not None)
+    if record is None:
+        return None
+    b = np.zeros(2)
+    if not pinned_phase:
+        b = _phase(phase_sums(pos, record(0.0, 0.0), phases, NO_TABLE, NO_REGIONS)[0],
+                   record(0.0, 0.0).rank)
+    return LevelLattice(record(*b), phases)
+
+
+def _level_record(lattice: Lattice, level_scale: int, jac, output: Lattice | None,
+                  atlas: bool):
+    """record(b0, b1) -> the level's LatticeParams at output phase b, or None before the
+    lattice's periods are long enough (see level_lattice)."""
     level = lattice.scaled(1.0 / level_scale)
     if level.shortest() < LATTICE_MIN_PERIOD:
         return None
@@ -135,21 +225,52 @@ def level_lattice(lattice: Lattice | None, level_scale: int, jac, pos: np.ndarra
     N2[:rank], T2[:, :rank], G2[:rank] = N, T, G
     integral = bool(np.array_equal(jac, np.eye(2)))
     # copies drift against an output lattice that differs from the exemplar's (or a phase map)
-    keep = DRIFT_KEEP if output is not None or phase_map is not None else 0.5
+    keep = DRIFT_KEEP if output is not None or atlas else 0.5
     axis = int(abs(N2[0, 1]) > abs(N2[0, 0]))
-    phases = _NO_PHASE if phase_map is None else np.ascontiguousarray(phase_map, np.float32)
 
     def record(b0, b1):
         return LatticeParams(rank, *(float(v) for v in N2.ravel()),
                              *(float(v) for v in T2.ravel()), *(float(v) for v in G2.ravel()),
                              float(b0), float(b1), integral, axis, keep)
+    return record
 
-    b = np.zeros(2)
+
+def _phase(sums: np.ndarray, rank: int) -> np.ndarray:
+    """The output phase b (cycles) the circular mean of a field's phases gives."""
+    b = np.angle(sums) / (2 * np.pi)
+    b[rank:] = 0.0
+    return b
+
+
+def _regional(lattice: RegionLattices, level_scale: int, jac, pos: np.ndarray,
+              phases: np.ndarray, pinned_phase: bool) -> LevelLattice | None:
+    """level_lattice of a lattice per region: the kernels' table and this level's regions."""
+    records = [None if lat is None else _level_record(lat, level_scale, jac, out, False)
+               for lat, out in zip(lattice.lattices, lattice.outputs)]
+    if all(r is None for r in records):
+        return None
+    regions = level_labels(lattice.labels, level_scale)
+    table = np.array([_row(NO_LATTICE if r is None else r(0.0, 0.0)) for r in records])
     if not pinned_phase:
-        sums = phase_sums(np.ascontiguousarray(pos, np.float32), record(0.0, 0.0), phases)
-        b = np.angle(sums) / (2 * np.pi)
-        b[rank:] = 0.0
-    return LevelLattice(record(*b), phases)
+        sums = phase_sums(pos, NO_LATTICE, phases, table, regions)
+        table = np.array([_row(NO_LATTICE if r is None else r(*_phase(s, r(0.0, 0.0).rank)))
+                          for r, s in zip(records, sums)])
+    return LevelLattice(NO_LATTICE, phases, np.ascontiguousarray(table, np.float64), regions)
+
+
+def level_labels(labels: np.ndarray, level_scale: int) -> np.ndarray:
+    """int32 region labels (h, w) at a pyramid level `level_scale` times coarser: each level
+    pixel (i, j) covers finest pixels from (i, j) * level_scale on, and takes its centre's."""
+    rows = np.minimum(np.arange(-(-labels.shape[0] // level_scale)) * level_scale
+                      + level_scale // 2, labels.shape[0] - 1)
+    cols = np.minimum(np.arange(-(-labels.shape[1] // level_scale)) * level_scale
+                      + level_scale // 2, labels.shape[1] - 1)
+    return np.ascontiguousarray(labels[rows][:, cols], np.int32)
+
+
+def _row(params: LatticeParams) -> list:
+    """A LatticeParams as a row of the kernels' region table."""
+    return [float(v) for v in params]
 
 
 def leftover(lattice: Lattice, shape) -> float:
