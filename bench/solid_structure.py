@@ -206,7 +206,16 @@ def _sheet(pictures, path: Path) -> None:
         pad[:, :p.shape[1]] = p
         parts.append(pad)
         parts.append(np.ones((gap, w, 3), np.float32))
-    write_image(path, np.concatenate(parts[:-1], 0), 8)
+    picture = np.concatenate(parts[:-1], 0)
+    if path.suffix.lower() in (".jpg", ".jpeg"):  # docs/ pictures: at most MAX_BYTES
+        import OpenImageIO as oiio
+        from contact_sheet import write_jpeg
+
+        buf = oiio.ImageBuf(oiio.ImageSpec(picture.shape[1], picture.shape[0], 3, oiio.FLOAT))
+        buf.set_pixels(oiio.ROI(), np.ascontiguousarray(picture, np.float32))
+        write_jpeg(buf, path)
+    else:
+        write_image(path, picture, 8)
 
 
 def main(argv=None) -> int:
