@@ -152,6 +152,8 @@ def test_analyse_prints_and_writes_the_segmentation(run_cli, cells64, tmp_path):
     assert "structure: particles" in result.out and "diameter median" in result.out
     picture = read_image(tmp_path / "cells64_segmentation.png").pixels
     assert picture.shape[1] > 2 * picture.shape[0]  # exemplar | segmentation
+    again = run_cli("solid", exemplar, "--analyse")  # replaces its own picture
+    assert again.code == 0, again.err
     bad = run_cli("solid", exemplar, "--analyse", "-o", tmp_path / "seg.npy")
     assert bad.code == 2 and "--analyse writes a .png" in bad.err
 
