@@ -1,5 +1,6 @@
-"""Helpers shared by the kernel modules (coherence, regions, render, solid): hashed random
-numbers, bilinear feature sampling, and the neighbours of a pixel in a 2D field. Pure `@njit`
+"""Helpers shared by the kernel modules (coherence, regions, render, solid, structure): hashed
+random numbers, bilinear feature sampling, the neighbours of a pixel in a 2D field, and the root
+of a union-find forest. Pure `@njit`
 functions, inlined into their callers."""
 
 import numpy as np
@@ -58,3 +59,12 @@ def neighbour(y, x, dy, dx, H, W, wrap):
     if wrap:
         return qy % H, qx % W, True
     return qy, qx, 0 <= qy < H and 0 <= qx < W
+
+
+@njit(cache=True, inline="always")
+def find_root(parent, i):
+    """The root of i in the union-find forest `parent` (int64[N]), halving the path on the way."""
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i

@@ -12,7 +12,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from osmap_kernels.common import EIGHT_NEIGHBOURS, neighbour, sample
+from osmap_kernels.common import EIGHT_NEIGHBOURS, find_root, neighbour, sample
 from osmap_kernels.lattice import NO_LATTICE, lattice_shift_ok
 
 # Parameters of one alignment pass.
@@ -29,14 +29,6 @@ AlignParams = namedtuple("AlignParams", "radius wrap lo hi seam max_area reach l
 
 # neighbours whose positions continue each other to within this (each axis) are one copy
 COPY_TOL = 1e-3
-
-
-@njit(cache=True)
-def _find(parent, i):
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
 
 
 @njit(cache=True)
@@ -91,8 +83,8 @@ def _copy_region_forest(pos, jac, wrap, tol):
                 ey = pos[qy, qx, 0] - pos[y, x, 0] - (J[0, 0] * dy + J[0, 1] * dx)
                 ex = pos[qy, qx, 1] - pos[y, x, 1] - (J[1, 0] * dy + J[1, 1] * dx)
                 if abs(ey) < tol and abs(ex) < tol:
-                    a = _find(parent, y * W + x)
-                    b = _find(parent, qy * W + qx)
+                    a = find_root(parent, y * W + x)
+                    b = find_root(parent, qy * W + qx)
                     if a != b:
                         parent[max(a, b)] = min(a, b)
     return parent
@@ -106,7 +98,7 @@ def copy_region_labels(pos, jac, wrap):
     labels = np.empty((H, W), np.int64)
     for y in range(H):
         for x in range(W):
-            labels[y, x] = _find(parent, y * W + x)
+            labels[y, x] = find_root(parent, y * W + x)
     return labels
 
 
@@ -121,7 +113,7 @@ def copy_region_ids(pos, jac, wrap, tol=COPY_TOL):
     ids = np.empty((H, W), np.int64)
     count = 0
     for i in range(H * W):
-        root = _find(parent, i)
+        root = find_root(parent, i)
         if root == i:  # a region's first pixel
             ids[i // W, i % W] = count
             count += 1
@@ -237,8 +229,8 @@ def _border_terms(pos, labels, group, area, feat, jac, border, region, p, terms)
             sign = 1.0 if inner else -1.0
             target[m, 0] = sign * ey
             target[m, 1] = sign * ex
-            here = _find(group, labels[y, x])
-            there = _find(group, labels[qy, qx])
+            here = find_root(group, labels[y, x])
+            there = find_root(group, labels[qy, qx])
             merges[m] = here != there and area[here] + area[there] > p.max_area
             others[m] = labels[qy, qx] if inner else labels[y, x]
             m += 1
@@ -452,8 +444,8 @@ def align_regions(pos, feat, jac, p):
             pos[y, x, 1] += sx
         for m in range(target.shape[0]):  # the copies it now continues are one copy
             if abs(target[m, 0] - sy) <= 1e-3 and abs(target[m, 1] - sx) <= 1e-3:
-                a = _find(group, region)
-                b = _find(group, others[m])
+                a = find_root(group, region)
+                b = find_root(group, others[m])
                 if a != b:
                     group[max(a, b)] = min(a, b)
                     area[min(a, b)] += area[max(a, b)]

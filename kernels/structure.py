@@ -8,6 +8,8 @@ outputs and the union-find labelling numbers components in raster order of their
 import numpy as np
 from numba import njit, prange
 
+from osmap_kernels.common import EIGHT_NEIGHBOURS, find_root, neighbour
+
 BIG = 1.0e20
 
 
@@ -68,17 +70,9 @@ def squared_distance_rows(rows, wrap):
 
 
 @njit(cache=True)
-def _find(parent, i):
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
-
-
-@njit(cache=True)
 def _union(parent, a, b):
-    ra = _find(parent, a)
-    rb = _find(parent, b)
+    ra = find_root(parent, a)
+    rb = find_root(parent, b)
     if ra < rb:
         parent[rb] = ra
     elif rb < ra:
@@ -100,14 +94,8 @@ def label_components(labels, eight, wrap):
             for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
                 if not eight and dy == 1 and dx != 0:
                     continue
-                qy = y + dy
-                qx = x + dx
-                if wrap:
-                    qy %= h
-                    qx %= w
-                elif qy >= h or qx < 0 or qx >= w:
-                    continue
-                if labels[qy, qx] == lab:
+                qy, qx, inside = neighbour(y, x, dy, dx, h, w, wrap)
+                if inside and labels[qy, qx] == lab:
                     _union(parent, y * w + x, qy * w + qx)
     ids = np.full((h, w), -1, np.int64)
     remap = np.full(h * w, -1, np.int64)
@@ -116,7 +104,7 @@ def label_components(labels, eight, wrap):
         for x in range(w):
             if labels[y, x] < 0:
                 continue
-            r = _find(parent, y * w + x)
+            r = find_root(parent, y * w + x)
             if remap[r] < 0:
                 remap[r] = count
                 count += 1
@@ -443,30 +431,24 @@ def split_touching(dist, mask, dynamic, wrap):
             continue
         level = dist[y, x]
         found = -1
-        for dy in (-1, 0, 1):
-            for dx in (-1, 0, 1):
-                if dy == 0 and dx == 0:
-                    continue
-                qy = y + dy
-                qx = x + dx
-                if wrap:
-                    qy %= h
-                    qx %= w
-                elif qy < 0 or qy >= h or qx < 0 or qx >= w:
-                    continue
-                r = region[qy * w + qx]
-                if r < 0:
-                    continue
-                r = _find(parent, r)
-                if found < 0:
-                    found = r
-                elif r != found:
-                    low, high = (r, found) if peak[r] < peak[found] else (found, r)
-                    if peak[low] - level < dynamic:
-                        parent[low] = high
-                        found = high
-                    else:
-                        split[y, x] = True
+        for k in range(8):
+            qy, qx, inside = neighbour(y, x, EIGHT_NEIGHBOURS[k, 0], EIGHT_NEIGHBOURS[k, 1], h, w,
+                                       wrap)
+            if not inside:
+                continue
+            r = region[qy * w + qx]
+            if r < 0:
+                continue
+            r = find_root(parent, r)
+            if found < 0:
+                found = r
+            elif r != found:
+                low, high = (r, found) if peak[r] < peak[found] else (found, r)
+                if peak[low] - level < dynamic:
+                    parent[low] = high
+                    found = high
+                else:
+                    split[y, x] = True
         if split[y, x]:
             continue
         if found < 0:

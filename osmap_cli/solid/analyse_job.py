@@ -10,8 +10,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from osmap_cli.batch import Job
-from osmap_cli.solid.job import check_exemplars, read_exemplars
+from osmap_cli.solid.job import ExemplarSetJob
 
 __all__ = ["AnalyseJob", "picture_name"]
 
@@ -25,7 +24,7 @@ def picture_name(exemplar: str) -> str:
 
 
 @dataclass(frozen=True)
-class AnalyseJob(Job):
+class AnalyseJob(ExemplarSetJob):
     """The analysis of one exemplar or --x/--y/--z set and where its picture goes."""
 
     index: int
@@ -42,20 +41,14 @@ class AnalyseJob(Job):
         return [self.output]
 
     def describe(self) -> dict:
-        record = {"input": self.exemplar, "outputs": self.outputs,
-                  "options": {k: v for k, v in dataclasses.asdict(self.options).items()
-                              if k in ("structure", "phases", "tileable", "seed")}}
-        if len(self.files) == 3:
-            record["axis_inputs"] = list(self.files)
-        return record
-
-    def read(self) -> list:
-        return read_exemplars(self.files)
+        return self.exemplar_record(options={
+            k: v for k, v in dataclasses.asdict(self.options).items()
+            if k in ("structure", "phases", "tileable", "seed")})
 
     def check(self, images) -> None:
         from osmap_cli.image_formats import output_format
 
-        check_exemplars(self.files, images)
+        super().check(images)
         output_format(self.output, 8, 3)
 
     def compute(self, images):

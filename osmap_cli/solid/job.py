@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from osmap_cli.batch import Job
 from osmap_cli.errors import OsmapError
 
-__all__ = ["SolidJob", "solid_args"]
+__all__ = ["ExemplarSetJob", "SolidJob", "solid_args"]
 
 
 def solid_args(options, preset: str) -> list[str]:
@@ -37,8 +37,26 @@ def solid_args(options, preset: str) -> list[str]:
     return args + flag_args(options, baseline)
 
 
+class ExemplarSetJob(Job):
+    """A job on one exemplar or one --x/--y/--z set (its fields `exemplar` and `files`): reads
+    and checks the set, and its record names every file of it."""
+
+    def read(self) -> list:
+        return read_exemplars(self.files)
+
+    def check(self, images) -> None:
+        check_exemplars(self.files, images)
+
+    def exemplar_record(self, **fields) -> dict:
+        """The job's record: input, outputs, FIELDS, and the per-axis inputs of a set."""
+        record = {"input": self.exemplar, "outputs": self.outputs, **fields}
+        if len(self.files) == 3:
+            record["axis_inputs"] = list(self.files)
+        return record
+
+
 @dataclass(frozen=True)
-class SolidJob(Job):
+class SolidJob(ExemplarSetJob):
     """One solid synthesis and where its outputs go."""
 
     index: int
@@ -62,21 +80,14 @@ class SolidJob(Job):
 
     def describe(self) -> dict:
         opts = self.options
-        record = {"input": self.exemplar, "outputs": self.outputs,
-                  "size": [opts.width, opts.height, opts.depth], "seed": opts.seed,
-                  "options": {"preset": self.preset, **dataclasses.asdict(opts)}}
-        if len(self.files) == 3:
-            record["axis_inputs"] = list(self.files)
-        return record
-
-    def read(self) -> list:
-        return read_exemplars(self.files)
+        return self.exemplar_record(size=[opts.width, opts.height, opts.depth], seed=opts.seed,
+                                    options={"preset": self.preset, **dataclasses.asdict(opts)})
 
     def check(self, images) -> None:
         from osmap_cli.memory import check_memory, structure_bytes, volume_bytes
         from osmap_cli.solid import volumeio
 
-        check_exemplars(self.files, images)
+        super().check(images)
         volumeio.check_target(self.output, self.kind)
         count = images[0].pixels.shape[2]
         if self.kind in ("png", "atlas") and count > 4:
