@@ -23,6 +23,17 @@ def spectral_field(shape, amplitude, seed: int) -> np.ndarray:
     return field / std if std > 0 else field
 
 
+def gaussian_noise_grid(shape, sigma, seed: int) -> np.ndarray:
+    """float32 (shape): periodic unit-variance noise with a Gaussian correlation of sigma[d]
+    cells along axis d."""
+
+    def amplitude(kz, ky, kx):
+        k2 = (sigma[0] * kz) ** 2 + (sigma[1] * ky) ** 2 + (sigma[2] * kx) ** 2
+        return np.exp(-(np.pi ** 2) * k2)
+
+    return spectral_field(shape, amplitude, seed).astype(np.float32)
+
+
 def smooth_noise(shape, length: float, seed: int, wrap: bool = False) -> np.ndarray:
     """float32 (Z, Y, X): unit-variance Gaussian noise with a Gaussian correlation of about
     `length` voxels, made on a grid length / 4 coarser and interpolated (periodic with wrap: the
@@ -33,13 +44,7 @@ def smooth_noise(shape, length: float, seed: int, wrap: bool = False) -> np.ndar
     else:
         coarse = tuple(max(4, int(np.ceil(n / step)) + 4) for n in shape)
     sigma = [length / (n / c) for n, c in zip(shape, coarse)] if wrap else [length / step] * 3
-
-    def amplitude(kz, ky, kx):
-        k = (sigma[0] * kz, sigma[1] * ky, sigma[2] * kx)  # cycles per correlation length
-        k2 = k[0] ** 2 + k[1] ** 2 + k[2] ** 2
-        return np.exp(-(np.pi ** 2) * k2)
-
-    field = spectral_field(coarse, amplitude, seed).astype(np.float32)[..., None]
+    field = gaussian_noise_grid(coarse, sigma, seed)[..., None]
     if wrap:
         return upsample_linear(field, shape, True)[..., 0]
     big = tuple(int(round(c * step)) for c in coarse)
@@ -61,13 +66,7 @@ class PeriodicNoise:
     def __init__(self, period, length: float, seed: int):
         coarse = tuple(max(4, int(round(p / max(1.0, length / 4.0)))) for p in period)
         self.step = np.array([p / c for p, c in zip(period, coarse)])
-        sigma = [length / s for s in self.step]
-
-        def amplitude(kz, ky, kx):
-            k2 = (sigma[0] * kz) ** 2 + (sigma[1] * ky) ** 2 + (sigma[2] * kx) ** 2
-            return np.exp(-(np.pi ** 2) * k2)
-
-        self.grid = spectral_field(coarse, amplitude, seed).astype(np.float32)
+        self.grid = gaussian_noise_grid(coarse, [length / s for s in self.step], seed)
 
     def at(self, points: np.ndarray) -> np.ndarray:
         """float32 (...): the noise at `points` (..., 3), voxel coordinates (z, y, x)."""
