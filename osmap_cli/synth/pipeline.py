@@ -181,9 +181,10 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
                              f"{exemplar.shape[1]}x{exemplar.shape[0]}: they must match")
         opts = opts.replace(coarse_sweeps=opts.coarse_sweeps * GUIDED_COARSE_FACTOR)
         regions = guide_regions(guide) if painted and opts.method == "osmap" else None
-    lattice = _lattice(opts, exemplar, fields is not None)
     if regions is not None and opts.lattice == "auto" and fields is None:
-        lattice = _region_lattices(opts, exemplar, regions, lattice)
+        lattice = _region_lattices(opts, exemplar, regions)
+    else:
+        lattice = _lattice(opts, exemplar, fields is not None)
     if opts.method == "paper":
         from osmap_cli.synth.paper import synthesize_paper
         pos = synthesize_paper(exemplar.shape[:2], opts, progress=progress)
@@ -251,8 +252,8 @@ def _lattice(opts: SynthOptions, exemplar: np.ndarray, fields: bool) -> Lattice 
     return resolve_lattice(opts.lattice, exemplar)
 
 
-def _region_lattices(opts: SynthOptions, exemplar: np.ndarray, regions,
-                     lattice: Lattice | None) -> Lattice | RegionLattices | None:
+def _region_lattices(opts: SynthOptions, exemplar: np.ndarray, regions
+                     ) -> RegionLattices | None:
     """With an exemplar guide painted in a few values (a map of materials: `regions`,
     guide_regions' answer), a lattice per region, each read from that region alone: the
     several-material exemplar's lattice belongs to one material at most, and a material
