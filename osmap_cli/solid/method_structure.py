@@ -1,10 +1,11 @@
 """Method structure (the default): the 3D structure first, then the appearance.
 
 The exemplars are analysed (osmap_cli.solid.structure.analysis): separate particles (stones,
-chips, cells), layers (grain, rings, sediment), a phase field (regions and veins) or none of
-these. The structure found is built in 3D at the exemplar's scale (particles by stereology by
-simulation, layers as the bands of a displaced planar or cylindrical field, phase fields as a
-truncated Gaussian field), then the Kopf et al. optimisation fills in the appearance with the
+chips, cells), layers (grain, rings, sediment), veins (swirled bands), a phase field (mottled
+regions) or none of these. The structure found is built in 3D at the exemplar's scale
+(particles by stereology by simulation, layers as the bands of a displaced planar or
+cylindrical field, veins as the bands of a warped turbulent field, phase fields as a truncated
+Gaussian field), then the Kopf et al. optimisation fills in the appearance with the
 structure as guide channels of every slice window, starting from the OS-Map's layout of the
 coarsest volume; finally each phase's colours, and each particle's mean colour, are matched to
 the exemplar's, and the whole volume's colours moved `final_histogram` of the way to the
