@@ -7,6 +7,10 @@ and seed (0, 1, 2) it reports, with texmetrics.py (coh_mean, in its own venv):
 * the share of each output half copied from its material (from the result's positions);
 * each half (4 px kept off the boundary) against its material, over an unguided synthesis of
   that material alone at the half's size (same seed): the guide's cost in coherence;
+* the same half over the same columns of an unguided synthesis of that material alone at the
+  whole output's size (the crop the pair forces, same seed): like with like, the half and its
+  reference cut from outputs of one size at one place (an output's border columns read
+  differently from its inside);
 * the whole output against the two-material exemplar, over an unguided synthesis of the same
   exemplar at the same size (the issue's wording: "coherence within 1.3x of unguided");
 * the whole output against the two-material exemplar, over the two materials synthesized
@@ -61,6 +65,15 @@ def alone(name: str, pixels: np.ndarray, seed: int, folder: Path) -> tuple[Path,
     return path, whole
 
 
+def alone_whole(name: str, pixels: np.ndarray, seed: int, folder: Path) -> Path:
+    """The material synthesized alone at the whole output's size, once."""
+    path = folder / f"alone_whole_{name}_{pixels.shape[0]}_{seed}.png"
+    if not path.exists():
+        out = synthesize(pixels, SynthOptions(width=SIDE, height=SIDE, seed=seed)).pixels
+        write_image(str(path), out, 8)
+    return path
+
+
 def measure_pair(a: str, b: str, seed: int, folder: Path) -> dict:
     """One pair at one seed: shares, half ratios and the whole-output ratio."""
     pa, pb = SMALL_EXEMPLARS / f"{a}.png", SMALL_EXEMPLARS / f"{b}.png"
@@ -82,24 +95,28 @@ def measure_pair(a: str, b: str, seed: int, folder: Path) -> dict:
     (paths_a, half_a), (paths_b, half_b) = alone(a, ea, seed, folder), alone(b, eb, seed, folder)
     paths = {"alone_a": paths_a, "alone_b": paths_b}
     files["apart"] = np.concatenate([read_image(half_a).pixels, read_image(half_b).pixels], axis=1)
+    files["same_a"] = read_image(alone_whole(a, ea, seed, folder)).pixels[:, :half]
+    files["same_b"] = read_image(alone_whole(b, eb, seed, folder)).pixels[:, SIDE // 2 + MARGIN:]
     for name, pixels in files.items():
         paths[name] = folder / f"{a}__{b}_{seed}_{name}.png"
         write_image(str(paths[name]), pixels, 8)
     with ThreadPoolExecutor(2) as pool:  # the meter runs in its own processes
         scores = dict(zip(("left", "alone_a", "right", "alone_b", "guided", "unguided",
-                           "apart"),
+                           "apart", "same_a", "same_b"),
                           pool.map(lambda job: coh(*job), [
                               (pa, paths["left"]), (pa, paths["alone_a"]),
                               (pb, paths["right"]), (pb, paths["alone_b"]),
                               (paths["exemplar"], paths["guided"]),
                               (paths["exemplar"], paths["unguided"]),
-                              (paths["exemplar"], paths["apart"])])))
+                              (paths["exemplar"], paths["apart"]),
+                              (pa, paths["same_a"]), (pb, paths["same_b"])])))
     halves = [(scores["left"], scores["alone_a"]), (scores["right"], scores["alone_b"])]
     return {
         "images": (exemplar, guided.pixels, unguided),
         "share": (1 - from_b[:, :SIDE // 2].mean(), from_b[:, SIDE // 2:].mean()),
         "halves": halves,
         "half": tuple(g / alone for g, alone in halves),
+        "same": (scores["left"] / scores["same_a"], scores["right"] / scores["same_b"]),
         "whole": (scores["guided"], scores["unguided"]),
         "apart": scores["apart"],
     }
@@ -122,9 +139,11 @@ def main() -> None:
     pairs = all_pairs() if every else args.pairs
     with measurement_folder(args.keep) as folder:
         print("| A : B | seed | share A / B | half A / alone, half B / alone "
-              "| whole: guided, unguided (ratio) | whole / the two alone |")
-        print("| --- | --- | --- | --- | --- | --- |")
-        halves, wholes, aparts, per_material, rows, results = [], [], [], {}, [], []
+              "| the same, alone at the output's size | whole: guided, unguided (ratio) "
+              "| whole / the two alone |")
+        print("| --- | --- | --- | --- | --- | --- | --- |")
+        halves, sames, wholes, aparts, rows, results = [], [], [], [], [], []
+        per_material = {}
         for pair in pairs.split(","):
             a, b = pair.split(":")
             for seed in seeds:
@@ -133,16 +152,25 @@ def main() -> None:
                     rows.append(m["images"])
                 results.append((a, b, seed, m))
                 halves += m["half"]
+                sames += m["same"]
                 for name, raw in zip((a, b), m["halves"]):
                     per_material.setdefault(name, []).append(raw)
                 wholes.append(m["whole"][0] / m["whole"][1])
                 aparts.append(m["whole"][0] / m["apart"])
                 print(f"| {a} : {b} | {seed} | {m['share'][0]:.1%} / {m['share'][1]:.1%} "
-                      f"| {m['half'][0]:.2f}, {m['half'][1]:.2f} | {m['whole'][0]:.2f}, "
+                      f"| {m['half'][0]:.2f}, {m['half'][1]:.2f} "
+                      f"| {m['same'][0]:.2f}, {m['same'][1]:.2f} | {m['whole'][0]:.2f}, "
                       f"{m['whole'][1]:.2f} ({wholes[-1]:.2f}) | {aparts[-1]:.2f} |", flush=True)
-        print(f"\nhalf ratios: geometric mean {np.exp(np.mean(np.log(halves))):.2f}, "
-              f"max {max(halves):.2f}, over 1.3: {sum(h > 1.3 for h in halves)} of {len(halves)}; "
-              f"whole ratios: max {max(wholes):.2f}, over 1.3: "
+        for label, ratios in (("half ratios", halves),
+                              ("half ratios, alone at the output's size", sames)):
+            print(f"\n{label}: median {np.median(ratios):.2f}, geometric mean "
+                  f"{np.exp(np.mean(np.log(ratios))):.2f}, max {max(ratios):.2f}, over 1.3: "
+                  f"{sum(h > 1.3 for h in ratios)} of {len(ratios)}; worst: " + ", ".join(
+                      f"{name} {r:.2f}" for r, name in sorted(
+                          ((r, f"{(a, b)[i]} beside {(b, a)[i]}") for a, b, _, m in results
+                           for i, r in enumerate(m["half" if ratios is halves else "same"])),
+                          reverse=True)[:5]))
+        print(f"whole ratios: max {max(wholes):.2f}, over 1.3: "
               f"{sum(w > 1.3 for w in wholes)} of {len(wholes)}; over the two alone: max "
               f"{max(aparts):.2f}, over 1.3: {sum(w > 1.3 for w in aparts)} of {len(aparts)}")
         shares = [min(m["share"]) for *_, m in results]
@@ -154,11 +182,12 @@ def main() -> None:
                   f"{name} {np.mean([g for g, _ in raw]) / np.mean([u for _, u in raw]):.2f}"
                   for name, raw in per_material.items()))
         if every:
-            worst = sorted(results, key=lambda r: (min(r[3]["share"]), -max(r[3]["half"])))
+            worst = sorted(results, key=lambda r: (min(r[3]["share"]), -max(r[3]["same"])))
             worst = worst[:args.worst]
             print("worst pairs: " + "; ".join(
                 f"{a} : {b} (seed {seed}) share {min(m['share']):.1%}, half ratios "
-                f"{m['half'][0]:.2f} / {m['half'][1]:.2f}" for a, b, seed, m in worst))
+                f"{m['half'][0]:.2f} / {m['half'][1]:.2f} (alone at the output's size "
+                f"{m['same'][0]:.2f} / {m['same'][1]:.2f})" for a, b, seed, m in worst))
             rows = [m["images"] for *_, m in worst]
     if args.sheet:
         write_image(args.sheet, sheet(rows), 8)
