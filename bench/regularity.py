@@ -23,6 +23,11 @@ other (top against bottom, left against right: the lattice of one read on the ot
 on each seed (with coh_mean and copy_side), (d) the best peer (the highest lower ratio to the
 bar); and the same across the stripes at their period (the lattice the synthesis keeps) for
 (a) and (c).
+--autocorr PATH writes, per exemplar of --names, the exemplar, a 2x2 tiling of it, its
+autocorrelation (the meter's: displacements within half the exemplar each way, 0 black, its
+largest off-centre value white; the meter's vectors marked red) and osmap's output at the first
+seed: a lattice shows as a grid of peaks, stripes as ridges, a perspective wall as peaks that
+smear with distance from the centre.
 --sheet writes a contact sheet of the first seed: per row the exemplar (enlarged to 256), the
 output without the lattice, with it, and the peer whose output keeps the lattice best (long).
 """
@@ -210,6 +215,27 @@ def bars(name: str, seeds: list[int], folder: Path) -> None:
           f"| {_across(meter, exemplar, tiled, lattice)} | {'; '.join(across)} |", flush=True)
 
 
+def autocorr_row(name: str, seed: int, folder: Path) -> list[np.ndarray]:
+    """One row of the --autocorr sheet: exemplar, 2x2 tiling, autocorrelation, osmap."""
+    meter = _meter()
+    source = exemplar_path(name)
+    pixels = read_image(source).pixels
+    lum = meter.read(str(source))
+    r, (h, w) = meter.autocorr(lum)
+    crop = r[h // 2:h + h // 2, w // 2:w + w // 2].copy()
+    off = crop.copy()
+    off[h // 2 - 3:h // 2 + 4, w // 2 - 3:w // 2 + 4] = 0.0  # the central lobe
+    picture = np.clip(crop / max(off.max(), 1e-6), 0, 1)
+    picture = np.repeat(picture[..., None], 3, axis=2).astype(np.float32)
+    for t in meter.lattice(lum) or []:
+        for sign in (1, -1):
+            y, x = h // 2 + sign * int(t[0]), w // 2 + sign * int(t[1])
+            picture[max(y - 1, 0):y + 2, max(x - 1, 0):x + 2] = (1.0, 0.0, 0.0)
+    output = synthesize(pixels, SynthOptions(width=SIDE, height=SIDE, seed=seed)).pixels
+    rgb = pixels[..., :3] if pixels.shape[2] >= 3 else np.repeat(pixels[..., :1], 3, axis=2)
+    return [rgb, np.tile(rgb, (2, 2, 1)), picture, output[..., :3]]
+
+
 def fmt(row: dict) -> str:
     return (f"{row['short']:.2f} / {row['long']:.2f} | {row['coh_mean']:.2f} "
             f"| {row['coh_p95']:.2f} | {row['copy_side']:.0f}")
@@ -220,11 +246,18 @@ def main() -> None:
     parser.add_argument("--names", default=",".join(REGULAR + SAMPLES))
     parser.add_argument("--probe", action="store_true",
                         help="the meter's figures along the kept lattice (see above)")
+    parser.add_argument("--autocorr", help="write the autocorrelation sheet here (see above)")
     parser.add_argument("--bars", action="store_true",
                         help="the bars table: tiling, halves, osmap, best peer (see above)")
     args = parser.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
     rows = []
+    if args.autocorr:
+        with measurement_folder(args.keep) as folder:
+            tiles = [[_fit(im) for im in autocorr_row(name, seeds[0], folder)]
+                     for name in args.names.split(",")]
+        write_image(args.autocorr, sheet(tiles), 8)
+        return
     if args.bars:
         with measurement_folder(args.keep) as folder:
             print("| exemplar | meter's vectors (dy, dx) | (a) 2x2 tiling | (b) halves: top vs "
@@ -271,13 +304,22 @@ def _cell(path: Path | None) -> np.ndarray:
     return np.clip(image, 0, 1)
 
 
+def _fit(image: np.ndarray) -> np.ndarray:
+    """An RGB image as a SIDE x SIDE tile (nearest neighbour: pixels and peaks stay sharp)."""
+    h, w = image.shape[:2]
+    ys = (np.arange(SIDE) * h // SIDE).clip(0, h - 1)
+    xs = (np.arange(SIDE) * w // SIDE).clip(0, w - 1)
+    return np.clip(image[ys][:, xs], 0, 1)
+
+
 def sheet(rows) -> np.ndarray:
-    """Rows of (exemplar, without, with, best peer) on white, GAP px apart."""
+    """Rows of four cells (paths, or SIDE x SIDE images) on white, GAP px apart: for --sheet
+    (exemplar, without, with, best peer)."""
     out = np.ones((len(rows) * (SIDE + GAP) - GAP, 4 * (SIDE + GAP) - GAP, 3), np.float32)
     for r, row in enumerate(rows):
-        for c, path in enumerate(row):
+        for c, cell in enumerate(row):
             y, x = r * (SIDE + GAP), c * (SIDE + GAP)
-            out[y:y + SIDE, x:x + SIDE] = _cell(path)
+            out[y:y + SIDE, x:x + SIDE] = cell if isinstance(cell, np.ndarray) else _cell(cell)
     return out
 
 

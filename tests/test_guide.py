@@ -148,6 +148,21 @@ def test_the_target_guide_is_resized_to_the_output(materials):
     assert from_b[:, :20].mean() < 0.1 and from_b[:, 28:].mean() > 0.9
 
 
+def test_a_painted_guide_keeps_its_values_at_every_level():
+    """Halving blurs a border between two painted materials into values between theirs; with
+    the painted values given, every level keeps only those (the nearest), so a material's
+    copies cannot spill across the border at the coarse levels at little cost."""
+    step = np.zeros((24, 40), np.float32)
+    step[:, 19:] = 1.0  # a border not on an even column: halving mixes the two values
+    blurred = guide_levels(step, (24, 40), 3)
+    assert any(np.any((g > 0.01) & (g < 0.99)) for g in blurred)
+    crisp = guide_levels(step, (24, 40), 3, values=(0.0, 1.0))
+    for level, g in zip(blurred, crisp):
+        assert set(np.unique(g)) <= {0.0, 1.0}
+        assert np.array_equal(g, (level >= 0.5).astype(np.float32))
+    assert np.array_equal(crisp[0], step)
+
+
 def test_guide_levels_and_auto_guide():
     ramp = np.tile(np.linspace(0, 1, 40, dtype=np.float32), (20, 1))
     levels = guide_levels(ramp, (20, 40), 3)
