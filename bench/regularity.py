@@ -236,6 +236,12 @@ def autocorr_row(name: str, seed: int, folder: Path) -> list[np.ndarray]:
     return [rgb, np.tile(rgb, (2, 2, 1)), picture, output[..., :3]]
 
 
+def _header(*columns: str) -> None:
+    """A Markdown table's header and rule."""
+    print("| " + " | ".join(columns) + " |")
+    print("| --- " * len(columns) + "|")
+
+
 def fmt(row: dict) -> str:
     return (f"{row['short']:.2f} / {row['long']:.2f} | {row['coh_mean']:.2f} "
             f"| {row['coh_p95']:.2f} | {row['copy_side']:.0f}")
@@ -260,18 +266,17 @@ def main() -> None:
         return
     if args.bars:
         with measurement_folder(args.keep) as folder:
-            print("| exemplar | meter's vectors (dy, dx) | (a) 2x2 tiling | (b) halves: top vs "
-                  "bottom; left vs right | (c) osmap per seed (coh_mean, copy_side) "
-                  "| (d) best peer | (a) across the stripes | (c) across the stripes |")
-            print("| --- " * 8 + "|")
+            _header("exemplar", "meter's vectors (dy, dx)", "(a) 2x2 tiling",
+                    "(b) halves: top vs bottom; left vs right",
+                    "(c) osmap per seed (coh_mean, copy_side)", "(d) best peer",
+                    "(a) across the stripes", "(c) across the stripes")
             for name in args.names.split(","):
                 bars(name, seeds, folder)
         return
     with measurement_folder(args.keep) as folder:
-        print("| exemplar | seed | lattice found | without: short / long | coh_mean | coh_p95 "
-              "| copy_side | with: short / long | coh_mean | coh_p95 | copy_side "
-              "| best peer: short / long | coh_mean |")
-        print("| --- " * 13 + "|")
+        _header("exemplar", "seed", "lattice found", "without: short / long", "coh_mean",
+                "coh_p95", "copy_side", "with: short / long", "coh_mean", "coh_p95", "copy_side",
+                "best peer: short / long", "coh_mean")
         for name in args.names.split(","):
             for seed in seeds:
                 m = measure(name, seed, folder)
