@@ -163,6 +163,27 @@ def test_a_painted_guide_keeps_its_values_at_every_level():
     assert np.array_equal(crisp[0], step)
 
 
+@pytest.mark.parametrize("left", ["gravel", "cells"])
+def test_a_painted_border_stays_where_the_target_puts_it(samples, left):
+    """Planks beside gravel or cells: no output pixel 2 px or more past the target's border
+    comes from the other material (with guides blurred by the pyramid's halving, 26 to 50
+    pixels of one material spilled 2 to 5 px into the other's half)."""
+    def material(name):
+        pixels = read_image(samples / f"{name}.png").pixels[:64, :64]
+        return pixels[..., :3] if pixels.shape[2] >= 3 else np.repeat(pixels[..., :1], 3, 2)
+
+    exemplar = np.concatenate([material(left), material("wood_side")], axis=1)
+    guide = np.zeros((64, 128), np.float32)
+    guide[:, 64:] = 1.0
+    result = synthesize(exemplar, SynthOptions(width=SIZE, height=SIZE, seed=1), guide=guide,
+                        target_guide=_halves())
+    from_wood = result.positions[..., 1] >= 63.5
+    columns = np.arange(SIZE)
+    wrong = np.where(columns < SIZE // 2, from_wood, ~from_wood)
+    past = np.where(columns < SIZE // 2, SIZE // 2 - 1 - columns, columns - SIZE // 2)
+    assert not np.any(wrong & (past >= 2)[None, :]), int((wrong & (past >= 2)[None, :]).sum())
+
+
 def test_guide_levels_and_auto_guide():
     ramp = np.tile(np.linspace(0, 1, 40, dtype=np.float32), (20, 1))
     levels = guide_levels(ramp, (20, 40), 3)
