@@ -19,14 +19,17 @@ and seed (0, 1, 2) it reports, with texmetrics.py (coh_mean, in its own venv):
   baseline is what the target asks for with no guide cost.
 
 With --sheet PATH, a contact sheet of the first seed: per pair the exemplar (A | B), the
-guided output and the unguided one (docs/guide_pairs.jpg).
+guided output and the unguided one (with --halves-only: the two materials alone at the
+output's size, joined where the target's halves meet; docs/guide_pairs.jpg).
 
 --pairs all measures every pair of the 11 development exemplars (55); the summary then names
-the worst pairs, and --sheet shows the WORST of them (by the lower half's share, then by the
-half ratio) instead of every pair. The material-alone syntheses are made once per material.
+the worst pairs, and --sheet shows the WORST of them (by the worse half's ratio against its
+material alone at the output's size) instead of every pair. The material-alone syntheses are
+made once per material and crop. --halves-only skips the unguided run and the whole-output
+figures (half the time).
 
     python bench/guide_measure.py [--pairs a:b,c:d|all] [--seeds 0,1,2] [--keep DIR]
-        [--sheet PATH] [--worst N]
+        [--sheet PATH] [--worst N] [--halves-only]
 """
 
 from __future__ import annotations
@@ -194,7 +197,7 @@ def main() -> None:
                   f"{name} {np.mean([g for g, _ in raw]) / np.mean([u for _, u in raw]):.2f}"
                   for name, raw in per_material.items()))
         if every:
-            worst = sorted(results, key=lambda r: (min(r[3]["share"]), -max(r[3]["same"])))
+            worst = sorted(results, key=lambda r: -max(r[3]["same"]))
             worst = worst[:args.worst]
             print("worst pairs: " + "; ".join(
                 f"{a} : {b} (seed {seed}) share {min(m['share']):.1%}, half ratios "
