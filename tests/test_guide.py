@@ -161,6 +161,10 @@ def test_a_painted_guide_keeps_its_values_at_every_level():
         assert set(np.unique(g)) <= {0.0, 1.0}
         assert np.array_equal(g, (level >= 0.5).astype(np.float32))
     assert np.array_equal(crisp[0], step)
+    ramp = np.tile(np.linspace(0, 1, 40, dtype=np.float32), (24, 1))  # between the materials
+    for kept, free in zip(guide_levels(ramp, (24, 40), 3, values=(0.0, 1.0)),
+                          guide_levels(ramp, (24, 40), 3)):
+        assert np.array_equal(kept, free)
 
 
 @pytest.mark.parametrize("left", ["gravel", "cells"])
