@@ -16,6 +16,18 @@ exemplar itself and on a 2x2 tiling of it: the autocorrelation at each multiple,
 figure the exemplar's own decay gives (its multiples within half its size). The meter's
 formula (../shared/tools/regularity.py, imported): a vector that is a point on a ridge of the
 autocorrelation (anywhere along a course correlates) decays on the exemplar itself.
+--bars reads, per exemplar, what the bar (short >= 0.75, long >= 0.6) asks of it: the meter on
+(a) a 2x2 tiling of the exemplar (what a verbatim copy scores: where it is under the bar, the
+bar cannot be met as the meter reads that exemplar), (b) the exemplar's own halves against each
+other (top against bottom, left against right: the lattice of one read on the other), (c) osmap
+on each seed (with coh_mean and copy_side), (d) the best peer (the highest lower ratio to the
+bar); and the same across the stripes at their period (the lattice the synthesis keeps) for
+(a) and (c).
+--autocorr PATH writes, per exemplar of --names, the exemplar, a 2x2 tiling of it, its
+autocorrelation (the meter's: displacements within half the exemplar each way, 0 black, its
+largest off-centre value white; the meter's vectors marked red) and osmap's output at the first
+seed: a lattice shows as a grid of peaks, stripes as ridges, a perspective wall as peaks that
+smear with distance from the centre.
 --sheet writes a contact sheet of the first seed: per row the exemplar (enlarged to 256), the
 output without the lattice, with it, and the peer whose output keeps the lattice best (long).
 """
@@ -140,6 +152,96 @@ def probe(name: str, output: Path, without: Path, lattice) -> None:
                   f"{prof[0] / peak:.2f}, long {np.mean(prof) / peak:.2f}")
 
 
+BAR = (0.75, 0.6)
+
+
+def _ratio(reading: dict) -> float:
+    """How far a meter reading is from the bar: its lower share of short and long (>= 1: met)."""
+    if not reading.get("regular"):
+        return float("nan")
+    return min(reading["short"] / BAR[0], (reading["long"] or 0.0) / BAR[1])
+
+
+def _read(reading: dict) -> str:
+    if not reading.get("regular"):
+        return "no lattice"
+    longs = "–" if reading["long"] is None else f"{reading['long']:.2f}"  # no multiple fits
+    return f"{reading['short']:.2f} / {longs}"
+
+
+def _across(meter, exemplar: np.ndarray, image: np.ndarray, lattice) -> str:
+    """The meter's formula along the lattice the synthesis keeps (short / long)."""
+    if lattice is None:
+        return "–"
+    r = meter.autocorr(exemplar)
+    shorts, longs = [], []
+    for v in lattice.vectors:
+        peak = meter.value(*r, v)
+        prof = _profile(meter, image, v)
+        shorts.append(prof[0] / peak)
+        longs += [p / peak for p in prof]
+    return f"{min(shorts):.2f} / {np.mean(longs):.2f}"
+
+
+def bars(name: str, seeds: list[int], folder: Path) -> None:
+    """Print one exemplar's row of the bars table (see --bars above)."""
+    meter = _meter()
+    source = exemplar_path(name)
+    exemplar = meter.read(str(source))
+    h, w = exemplar.shape
+    tiled = np.tile(exemplar, (2, 2))
+    halves = [meter.measure(exemplar[:h // 2], exemplar[h // 2:]),
+              meter.measure(exemplar[:, :w // 2], exemplar[:, w // 2:])]
+    pixels = read_image(source).pixels
+    own, across, lattice = [], [], None
+    for seed in seeds:
+        result = synthesize(pixels, SynthOptions(width=SIDE, height=SIDE, seed=seed))
+        path = folder / f"{name}_{seed}_auto.png"
+        write_image(str(path), result.pixels, 8)
+        lattice = result.lattice
+        s = score(source, path)
+        own.append(f"{s['short']:.2f} / {s['long']:.2f} ({s['coh_mean']:.2f}, "
+                   f"{s['copy_side']:.0f})" if s["short"] is not None else
+                   f"no lattice ({s['coh_mean']:.2f}, {s['copy_side']:.0f})")
+        across.append(_across(meter, exemplar, meter.read(str(path)), lattice))
+    peers = {p: meter.measure(exemplar, meter.read(str(PEERS_DIR / p / f"{name}.png")))
+             for p in PEERS if (PEERS_DIR / p / f"{name}.png").exists()}
+    best = max(peers, key=lambda p: np.nan_to_num(_ratio(peers[p]), nan=-1.0)) if peers else None
+    found = meter.lattice(exemplar)
+    vectors = ", ".join(f"({int(t[0])}, {int(t[1])})" for t in found or [])
+    print(f"| {name} | {vectors} | {_read(meter.measure(exemplar, tiled))} "
+          f"| {_read(halves[0])}; {_read(halves[1])} | {'; '.join(own)} "
+          f"| {best + ' ' + _read(peers[best]) if best else '–'} "
+          f"| {_across(meter, exemplar, tiled, lattice)} | {'; '.join(across)} |", flush=True)
+
+
+def autocorr_row(name: str, seed: int, folder: Path) -> list[np.ndarray]:
+    """One row of the --autocorr sheet: exemplar, 2x2 tiling, autocorrelation, osmap."""
+    meter = _meter()
+    source = exemplar_path(name)
+    pixels = read_image(source).pixels
+    lum = meter.read(str(source))
+    r, (h, w) = meter.autocorr(lum)
+    crop = r[h // 2:h + h // 2, w // 2:w + w // 2].copy()
+    off = crop.copy()
+    off[h // 2 - 3:h // 2 + 4, w // 2 - 3:w // 2 + 4] = 0.0  # the central lobe
+    picture = np.clip(crop / max(off.max(), 1e-6), 0, 1)
+    picture = np.repeat(picture[..., None], 3, axis=2).astype(np.float32)
+    for t in meter.lattice(lum) or []:
+        for sign in (1, -1):
+            y, x = h // 2 + sign * int(t[0]), w // 2 + sign * int(t[1])
+            picture[max(y - 1, 0):y + 2, max(x - 1, 0):x + 2] = (1.0, 0.0, 0.0)
+    output = synthesize(pixels, SynthOptions(width=SIDE, height=SIDE, seed=seed)).pixels
+    rgb = pixels[..., :3] if pixels.shape[2] >= 3 else np.repeat(pixels[..., :1], 3, axis=2)
+    return [rgb, np.tile(rgb, (2, 2, 1)), picture, output[..., :3]]
+
+
+def _header(*columns: str) -> None:
+    """A Markdown table's header and rule."""
+    print("| " + " | ".join(columns) + " |")
+    print("| --- " * len(columns) + "|")
+
+
 def fmt(row: dict) -> str:
     return (f"{row['short']:.2f} / {row['long']:.2f} | {row['coh_mean']:.2f} "
             f"| {row['coh_p95']:.2f} | {row['copy_side']:.0f}")
@@ -150,14 +252,31 @@ def main() -> None:
     parser.add_argument("--names", default=",".join(REGULAR + SAMPLES))
     parser.add_argument("--probe", action="store_true",
                         help="the meter's figures along the kept lattice (see above)")
+    parser.add_argument("--autocorr", help="write the autocorrelation sheet here (see above)")
+    parser.add_argument("--bars", action="store_true",
+                        help="the bars table: tiling, halves, osmap, best peer (see above)")
     args = parser.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
     rows = []
+    if args.autocorr:
+        with measurement_folder(args.keep) as folder:
+            tiles = [[_fit(im) for im in autocorr_row(name, seeds[0], folder)]
+                     for name in args.names.split(",")]
+        write_image(args.autocorr, sheet(tiles), 8)
+        return
+    if args.bars:
+        with measurement_folder(args.keep) as folder:
+            _header("exemplar", "meter's vectors (dy, dx)", "(a) 2x2 tiling",
+                    "(b) halves: top vs bottom; left vs right",
+                    "(c) osmap per seed (coh_mean, copy_side)", "(d) best peer",
+                    "(a) across the stripes", "(c) across the stripes")
+            for name in args.names.split(","):
+                bars(name, seeds, folder)
+        return
     with measurement_folder(args.keep) as folder:
-        print("| exemplar | seed | lattice found | without: short / long | coh_mean | coh_p95 "
-              "| copy_side | with: short / long | coh_mean | coh_p95 | copy_side "
-              "| best peer: short / long | coh_mean |")
-        print("| --- " * 13 + "|")
+        _header("exemplar", "seed", "lattice found", "without: short / long", "coh_mean",
+                "coh_p95", "copy_side", "with: short / long", "coh_mean", "coh_p95", "copy_side",
+                "best peer: short / long", "coh_mean")
         for name in args.names.split(","):
             for seed in seeds:
                 m = measure(name, seed, folder)
@@ -190,13 +309,22 @@ def _cell(path: Path | None) -> np.ndarray:
     return np.clip(image, 0, 1)
 
 
+def _fit(image: np.ndarray) -> np.ndarray:
+    """An RGB image as a SIDE x SIDE tile (nearest neighbour: pixels and peaks stay sharp)."""
+    h, w = image.shape[:2]
+    ys = (np.arange(SIDE) * h // SIDE).clip(0, h - 1)
+    xs = (np.arange(SIDE) * w // SIDE).clip(0, w - 1)
+    return np.clip(image[ys][:, xs], 0, 1)
+
+
 def sheet(rows) -> np.ndarray:
-    """Rows of (exemplar, without, with, best peer) on white, GAP px apart."""
+    """Rows of four cells (paths, or SIDE x SIDE images) on white, GAP px apart: for --sheet
+    (exemplar, without, with, best peer)."""
     out = np.ones((len(rows) * (SIDE + GAP) - GAP, 4 * (SIDE + GAP) - GAP, 3), np.float32)
     for r, row in enumerate(rows):
-        for c, path in enumerate(row):
+        for c, cell in enumerate(row):
             y, x = r * (SIDE + GAP), c * (SIDE + GAP)
-            out[y:y + SIDE, x:x + SIDE] = _cell(path)
+            out[y:y + SIDE, x:x + SIDE] = cell if isinstance(cell, np.ndarray) else _cell(cell)
     return out
 
 

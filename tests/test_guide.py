@@ -148,6 +148,46 @@ def test_the_target_guide_is_resized_to_the_output(materials):
     assert from_b[:, :20].mean() < 0.1 and from_b[:, 28:].mean() > 0.9
 
 
+def test_a_painted_guide_keeps_its_values_at_every_level():
+    """Halving blurs a border between two painted materials into values between theirs; with
+    the painted values given, every level keeps only those (the nearest), so a material's
+    copies cannot spill across the border at the coarse levels at little cost."""
+    step = np.zeros((24, 40), np.float32)
+    step[:, 19:] = 1.0  # a border not on an even column: halving mixes the two values
+    blurred = guide_levels(step, (24, 40), 3)
+    assert any(np.any((g > 0.01) & (g < 0.99)) for g in blurred)
+    crisp = guide_levels(step, (24, 40), 3, values=(0.0, 1.0))
+    for level, g in zip(blurred, crisp):
+        assert set(np.unique(g)) <= {0.0, 1.0}
+        assert np.array_equal(g, (level >= 0.5).astype(np.float32))
+    assert np.array_equal(crisp[0], step)
+    ramp = np.tile(np.linspace(0, 1, 40, dtype=np.float32), (24, 1))  # between the materials
+    for kept, free in zip(guide_levels(ramp, (24, 40), 3, values=(0.0, 1.0)),
+                          guide_levels(ramp, (24, 40), 3)):
+        assert np.array_equal(kept, free)
+
+
+@pytest.mark.parametrize("left", ["gravel", "cells"])
+def test_a_painted_border_stays_where_the_target_puts_it(samples, left):
+    """Planks beside gravel or cells: no output pixel 2 px or more past the target's border
+    comes from the other material (with guides blurred by the pyramid's halving, 26 to 50
+    pixels of one material spilled 2 to 5 px into the other's half)."""
+    def material(name):
+        pixels = read_image(samples / f"{name}.png").pixels[:64, :64]
+        return pixels[..., :3] if pixels.shape[2] >= 3 else np.repeat(pixels[..., :1], 3, 2)
+
+    exemplar = np.concatenate([material(left), material("wood_side")], axis=1)
+    guide = np.zeros((64, 128), np.float32)
+    guide[:, 64:] = 1.0
+    result = synthesize(exemplar, SynthOptions(width=SIZE, height=SIZE, seed=1), guide=guide,
+                        target_guide=_halves())
+    from_wood = result.positions[..., 1] >= 63.5
+    columns = np.arange(SIZE)
+    wrong = np.where(columns < SIZE // 2, from_wood, ~from_wood)
+    past = np.where(columns < SIZE // 2, SIZE // 2 - 1 - columns, columns - SIZE // 2)
+    assert not np.any(wrong & (past >= 2)[None, :]), int((wrong & (past >= 2)[None, :]).sum())
+
+
 def test_guide_levels_and_auto_guide():
     ramp = np.tile(np.linspace(0, 1, 40, dtype=np.float32), (20, 1))
     levels = guide_levels(ramp, (20, 40), 3)

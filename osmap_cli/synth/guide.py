@@ -63,13 +63,25 @@ def auto_guide(exemplar: np.ndarray) -> np.ndarray:
     return stretch(_blur(luminance(exemplar)))
 
 
-def guide_levels(guide: np.ndarray, shape, levels: int) -> list[np.ndarray]:
+def guide_levels(guide: np.ndarray, shape, levels: int, values=None) -> list[np.ndarray]:
     """[finest, ..., coarsest] float32 (h, w) guides: `guide` resized to `shape`, then halved
-    like the exemplar pyramid."""
+    like the exemplar pyramid. With `values` (a painted exemplar guide's values: a map of
+    materials) and a `guide` painted in them alone, every level's pixel takes the value nearest
+    it: halving would otherwise blur the border between two materials into values between
+    theirs, which cost either material little there, and a copy of one would spill across the
+    border at the coarse levels, where the layout forms, by as many output pixels as the blur
+    spans at the finest. A guide with other values (a gradient between materials) is kept as
+    it is."""
     image = np.asarray(guide, np.float32)[..., None]
+    table = None if values is None else np.asarray(values, np.float32)
+    painted = table is not None and bool(np.isin(image, table).all())
     if image.shape[:2] != tuple(shape):
         image = resize(image, int(shape[0]), int(shape[1]))
-    return [np.ascontiguousarray(level[..., 0]) for level in build_pyramid(image, levels)]
+    out = [np.ascontiguousarray(level[..., 0]) for level in build_pyramid(image, levels)]
+    if not painted:
+        return out
+    return [np.ascontiguousarray(table[np.abs(level[..., None] - table).argmin(axis=-1)])
+            for level in out]
 
 
 def load_guide(path: str, flag: str) -> np.ndarray:

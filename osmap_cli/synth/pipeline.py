@@ -222,8 +222,9 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
     guides = None
     if target_guide is not None:
         from osmap_cli.synth.guide import guide_levels
-        guides = list(zip(guide_levels(guide, exemplar.shape[:2], levels),
-                          guide_levels(target_guide, out_shape, levels)))
+        values = None if regions is None else regions[0]
+        guides = list(zip(guide_levels(guide, exemplar.shape[:2], levels, values),
+                          guide_levels(target_guide, out_shape, levels, values)))
     pyramid = build_pyramid(exemplar, levels)
     shapes = level_shapes(out_shape, levels)
     out_lattice = None
