@@ -102,10 +102,10 @@ def _fbm(points, period, length: float, seed: int, octaves: int) -> np.ndarray:
     return out
 
 
-def build_sheets(shape, model: SheetModel, seed: int, wrap: bool) -> np.ndarray:
-    """int64 (Z, Y, X): the phase of every voxel (the band of u it falls in). A volume holds
-    few bands, so of CHAINS band sequences the one whose phase fractions in this volume are
-    nearest the exemplar's is kept. With wrap the bands repeat across the faces (a sequence
+def sheet_bands(shape, model: SheetModel, seed: int, wrap: bool) -> ly.Bands:
+    """The sheets of a volume of `shape`: u at every voxel and the bands along it. A volume
+    holds few bands, so of CHAINS band sequences the one whose phase fractions in this volume
+    are nearest the exemplar's is kept. With wrap the bands repeat across the faces (a sequence
     stretched to the period along u, the normal the nearest that wraps: sheet_coordinate)."""
     u, period = sheet_coordinate(shape, model, seed, wrap)
     scaled = replace(model, runs=tuple(r * model.scale for r in model.runs),
@@ -126,7 +126,12 @@ def build_sheets(shape, model: SheetModel, seed: int, wrap: bool) -> np.ndarray:
         err = float(np.abs(got - model.fractions).sum())
         if best is None or err < best[0]:
             best = (err, bands)
-    return ly.band_index(*best[1], u, period)
+    return ly.Bands(u, *best[1], period)
+
+
+def build_sheets(shape, model: SheetModel, seed: int, wrap: bool) -> np.ndarray:
+    """int64 (Z, Y, X): the phase of every voxel (the band of u it falls in: sheet_bands)."""
+    return sheet_bands(shape, model, seed, wrap).labels()
 
 
 def label_coherence(labels: np.ndarray) -> float:
