@@ -26,8 +26,8 @@ MIN_RUN = 1.0
 WOBBLE_LENGTH = 4.0  # the displacement's correlation length, in layer spacings
 MAX_CHAIN = 1 << 20
 PARALLEL = 30.0  # degrees: one exemplar's layers this near a slice family's plane are tilted
-TILT = 25.0  # ... this much about their grain, so that no family cuts along them (more
-#               makes the end face's fill copy the exemplar's straight grain in steps)
+TILT = 45.0  # ... this much about their grain, so that no family cuts along them (the
+#               minimax of the families' band widths for turns about the grain: 1.41 : 1)
 
 
 @dataclass(frozen=True)
@@ -94,6 +94,16 @@ def stereological_scale(normal) -> float:
     widths = face_spacings(normal)
     widths = widths[widths < 1e6]
     return float(1.0 / np.sqrt(widths.max() * widths.min()))
+
+
+def turned_normal(normal, grain, degrees: float) -> np.ndarray:
+    """The unit normal (z, y, x) of layers turned `degrees` about their grain (a direction
+    within them; made perpendicular to the normal), sign as layer_normal's."""
+    grain = grain - (grain @ normal) * normal
+    grain = grain / max(np.linalg.norm(grain), 1e-9)
+    side = np.cross(grain, normal)
+    turned = np.cos(np.radians(degrees)) * normal + np.sin(np.radians(degrees)) * side
+    return turned * (1 if turned[np.argmax(np.abs(turned))] > 0 else -1)
 
 
 def ring_centre(lum: np.ndarray, sigma: float = 2.0):
@@ -371,12 +381,7 @@ def fit_layers(images, labels, analyses, ex_of_axis) -> LayerModel:
         # parallel to one slice family (one flat band there): turned TILT degrees about their
         # grain (the side faces' stripe direction), two families show the exemplar's stripes
         # along its direction and the third (the end grain) straight stripes across it
-        grain = stripe_direction(analyses[0].angle, 1)
-        grain = grain - (grain @ normal) * normal
-        grain /= max(np.linalg.norm(grain), 1e-9)
-        side = np.cross(grain, normal)
-        turned = np.cos(np.radians(TILT)) * normal + np.sin(np.radians(TILT)) * side
-        normal = turned * (1 if turned[np.argmax(np.abs(turned))] > 0 else -1)
+        normal = turned_normal(normal, stripe_direction(analyses[0].angle, 1), TILT)
         tilt = TILT
     if single:
         # the exemplar is itself a cut: the bands (and their displacement) are made as thick
