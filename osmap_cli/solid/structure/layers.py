@@ -84,16 +84,20 @@ def face_spacings(normal) -> np.ndarray:
     return 1.0 / np.sqrt(np.maximum(1.0 - n * n, 0.0) + 1e-300)
 
 
+RANDOM_CUT_LOG_WIDTH = 1.0 - np.log(2.0)  # mean log band width of uniformly random cuts
+
+
 def stereological_scale(normal) -> float:
     """The spacing along the normal, in the exemplar's spacing, that shows the exemplar's
-    spacing on the slice families as nearly as the geometry allows: the widest and the
-    narrowest family equally far from it (in ratio). The widths' ratio is at least 1 and, as
-    the n_i^2 sum to 1, some family shows at least 1 / sqrt(2/3) = 1.22 times the spacing:
-    only normals near a cube diagonal show every family the same width. Families that run
-    along the layers (one flat band) are left out."""
+    spacing on the cuts a user sees: the exemplar is itself a cut, so the mean log width of
+    the bands on the three slice families (those that run along the layers, one flat band,
+    left out) and, weighted alike, on uniformly random cuts (whose cosine c with the normal is
+    uniform: mean log width -E[log(1 - c^2)] / 2 = 1 - log 2 over the spacing) is the
+    exemplar's. As the n_i^2 sum to 1, some family shows at least 1 / sqrt(2/3) = 1.22 times
+    the spacing and only normals near a cube diagonal show every family the same width."""
     widths = face_spacings(normal)
-    widths = widths[widths < 1e6]
-    return float(1.0 / np.sqrt(widths.max() * widths.min()))
+    faces = float(np.mean(np.log(widths[widths < 1e6])))
+    return float(np.exp(-(faces + RANDOM_CUT_LOG_WIDTH) / 2))
 
 
 def turned_normal(normal, grain, degrees: float) -> np.ndarray:
@@ -292,11 +296,11 @@ class Bands:
         lower = np.where(j > 0, j - 1, last if wrap else 0)
         upper = np.where(j < last, j + 1, 0 if wrap else last)
         out = np.zeros(u.shape + (phases,), np.float32)
-        flat = out.reshape(-1, phases)
-        index = np.arange(u.size)
         for band, share in ((j, np.maximum(1.0 - below - above, 0.0)), (lower, below),
                             (upper, above)):
-            np.add.at(flat, (index, self.phases[band].ravel()), share.ravel())
+            phase = self.phases[band]
+            for k in range(phases):
+                out[..., k] += np.where(phase == k, share, 0.0)
         return out / np.maximum(out.sum(-1, keepdims=True), 1e-6)
 
 
