@@ -171,18 +171,29 @@ def test_one_layered_exemplar_shows_its_spacing_on_every_face(samples):
     assert min(shown) > 0.6 and max(shown) < 1.7, shown
 
 
-def test_vein_guide_has_no_staircases_along_the_grid():
-    found = plan([swirled_bands()], np.zeros(3, np.int64), seed=1)
-    lum = build_structure(found, (40, 40, 40), 1, False).identity.mean(-1)
+def test_band_coverage_has_no_staircases_along_the_grid():
+    from osmap_cli.solid.structure.layers import Bands
+    from osmap_cli.solid.structure.segment import smooth_volume
 
-    def axis_share(image):  # gradient energy within 7.5 degrees of the grid's axes
-        gy, gx = np.gradient(image)
-        energy = gx * gx + gy * gy
-        angle = np.degrees(np.arctan2(gy, gx)) % 90.0
-        return float(energy[(angle < 7.5) | (angle > 82.5)].sum() / energy.sum())
+    grids = np.meshgrid(*(np.arange(32, dtype=np.float32) for _ in range(3)), indexing="ij")
+    normal = np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0)
+    u = sum(float(n) * g for n, g in zip(normal, grids)).astype(np.float32)
+    starts = np.arange(-5.3, float(u.max()) + 5.3, 5.3)
+    bands = Bands(u, starts, np.arange(len(starts) - 1) % 2, None)
 
-    shares = [np.mean([axis_share(np.take(lum, i, axis)) for i in (10, 20, 30)])
-              for axis in range(3)]
-    # an isotropic picture puts 1/6 of its edges there; the bands antialiased from their
-    # distance along u: measured 0.09-0.14; blurred voxel labels (their staircases): 0.22-0.24
-    assert max(shares) < 0.17, shares
+    def axis_share(volume):  # gradient energy within 7.5 degrees of the grid's axes
+        out = []
+        for axis in range(3):
+            gy, gx = np.gradient(np.take(volume, 16, axis))
+            energy = gx * gx + gy * gy
+            angle = np.degrees(np.arctan2(gy, gx)) % 90.0
+            out.append(float(energy[(angle < 7.5) | (angle > 82.5)].sum() / energy.sum()))
+        return max(out)
+
+    exact = axis_share(bands.coverage(2)[..., 1])
+    blurred = axis_share(smooth_volume((bands.labels() == 1)[..., None].astype(np.float32),
+                                       0.5, False)[..., 0])
+    # oblique planar bands: no slice trace lies within 7.5 degrees of an axis, so the axis
+    # share is staircases; measured 0.011 from the distance along u, 0.040 with the voxel
+    # labels blurred as much (0.5 voxel)
+    assert exact < 0.02 and exact < 0.5 * blurred, (exact, blurred)

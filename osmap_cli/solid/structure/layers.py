@@ -266,6 +266,11 @@ def build_layers(shape, model: LayerModel, seed: int, wrap: bool) -> np.ndarray:
     return layer_bands(shape, model, seed, wrap).labels()
 
 
+def _step(x: np.ndarray) -> np.ndarray:
+    """The Gaussian's cumulative distribution at x (standard deviations), logistic form."""
+    return (1.0 / (1.0 + np.exp(-1.702 * np.clip(x, -30.0, 30.0)))).astype(np.float32)
+
+
 @dataclass(frozen=True)
 class Bands:
     """Bands of a scalar field: u float32 (Z, Y, X); starts (B + 1,) the band boundaries along
@@ -280,18 +285,18 @@ class Bands:
         """int64 (Z, Y, X): the phase of the band every voxel's centre falls in."""
         return band_index(self.starts, self.phases, self.u, self.period)
 
-    def coverage(self, phases: int) -> np.ndarray:
-        """float32 (Z, Y, X, K): every phase's share of each voxel, from the distance of its
-        centre to the nearest band boundaries measured along the field's gradient (a linear
-        ramp one voxel wide): exact antialiasing of the smooth boundaries, where blurring the
-        voxels' labels would keep their staircases along the grid."""
+    def coverage(self, phases: int, sigma: float = 0.5) -> np.ndarray:
+        """float32 (Z, Y, X, K): every phase's share of each voxel, from the signed distance of
+        its centre to the nearest band boundaries measured along the field's gradient, through
+        a smooth step as wide as a Gaussian of `sigma` voxels: the smooth boundaries blurred,
+        where blurring the voxels' labels keeps their staircases along the grid."""
         u = np.mod(self.u, self.period) if self.period is not None else self.u
         grad = [np.gradient(self.u, axis=a) for a in range(3)]
-        slope = np.maximum(np.sqrt(sum(g * g for g in grad)), 1e-6)
+        width = np.maximum(np.sqrt(sum(g * g for g in grad)), 1e-6) * sigma
         last = len(self.phases) - 1
         j = np.clip(np.searchsorted(self.starts, u, side="right") - 1, 0, last)
-        below = np.clip(0.5 - (u - self.starts[j]) / slope, 0.0, 0.5)
-        above = np.clip(0.5 - (self.starts[j + 1] - u) / slope, 0.0, 0.5)
+        below = _step(-(u - self.starts[j]) / width)
+        above = _step(-(self.starts[j + 1] - u) / width)
         wrap = self.period is not None
         lower = np.where(j > 0, j - 1, last if wrap else 0)
         upper = np.where(j < last, j + 1, 0 if wrap else last)
