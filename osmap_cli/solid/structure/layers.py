@@ -26,8 +26,8 @@ MIN_RUN = 1.0
 WOBBLE_LENGTH = 4.0  # the displacement's correlation length, in layer spacings
 MAX_CHAIN = 1 << 20
 PARALLEL = 30.0  # degrees: one exemplar's layers this near a slice family's plane are tilted
-TILT = 25.0  # ... this much about their grain, so that no family cuts along them (more
-#               makes the end face's fill copy the exemplar's straight grain in steps)
+TILT = 45.0  # ... this much about their grain, so that no family cuts along them (the
+#               minimax of the families' band widths for turns about the grain: 1.41 : 1)
 
 
 @dataclass(frozen=True)
@@ -74,6 +74,40 @@ def layer_normal(angles, weights) -> np.ndarray:
     vals, vecs = np.linalg.eigh(m)
     n = vecs[:, 0]
     return n * (1 if n[np.argmax(np.abs(n))] > 0 else -1)
+
+
+def face_spacings(normal) -> np.ndarray:
+    """(3,) how much wider than their spacing along the normal (z, y, x) planar layers show
+    on the slices normal to z, y and x: a plane with unit normal e_i cuts them in bands
+    1 / sqrt(1 - n_i^2) times their spacing (inf when the slices run along the layers)."""
+    n = np.asarray(normal, np.float64) / np.linalg.norm(normal)
+    return 1.0 / np.sqrt(np.maximum(1.0 - n * n, 0.0) + 1e-300)
+
+
+RANDOM_CUT_LOG_WIDTH = 1.0 - np.log(2.0)  # mean log band width of uniformly random cuts
+
+
+def stereological_scale(normal) -> float:
+    """The spacing along the normal, in the exemplar's spacing, that shows the exemplar's
+    spacing on the cuts a user sees: the exemplar is itself a cut, so the mean log width of
+    the bands on the three slice families (those that run along the layers, one flat band,
+    left out) and, weighted alike, on uniformly random cuts (whose cosine c with the normal is
+    uniform: mean log width -E[log(1 - c^2)] / 2 = 1 - log 2 over the spacing) is the
+    exemplar's. As the n_i^2 sum to 1, some family shows at least 1 / sqrt(2/3) = 1.22 times
+    the spacing and only normals near a cube diagonal show every family the same width."""
+    widths = face_spacings(normal)
+    faces = float(np.mean(np.log(widths[widths < 1e6])))
+    return float(np.exp(-(faces + RANDOM_CUT_LOG_WIDTH) / 2))
+
+
+def turned_normal(normal, grain, degrees: float) -> np.ndarray:
+    """The unit normal (z, y, x) of layers turned `degrees` about their grain (a direction
+    within them; made perpendicular to the normal), sign as layer_normal's."""
+    grain = grain - (grain @ normal) * normal
+    grain = grain / max(np.linalg.norm(grain), 1e-9)
+    side = np.cross(grain, normal)
+    turned = np.cos(np.radians(degrees)) * normal + np.sin(np.radians(degrees)) * side
+    return turned * (1 if turned[np.argmax(np.abs(turned))] > 0 else -1)
 
 
 def ring_centre(lum: np.ndarray, sigma: float = 2.0):
@@ -218,15 +252,61 @@ def layer_coordinate(shape, model: LayerModel, seed: int, wrap: bool):
     return u.astype(np.float32), period
 
 
-def build_layers(shape, model: LayerModel, seed: int, wrap: bool) -> np.ndarray:
-    """int64 (Z, Y, X): the phase of every voxel."""
+def layer_bands(shape, model: LayerModel, seed: int, wrap: bool) -> Bands:
+    """The layers of a volume of `shape`: u at every voxel and the bands along it."""
     u, period = layer_coordinate(shape, model, seed, wrap)
     if period is not None:
-        return band_index(*periodic_bands(model, period, seed), u, period)
+        return Bands(u, *periodic_bands(model, period, seed), period)
     extent = float(np.abs(u).max()) + 2 * model.spacing
-    starts, phases = band_sequence(model, extent, seed)
-    idx = np.clip(np.searchsorted(starts, u, side="right") - 1, 0, len(phases) - 1)
-    return phases[idx]
+    return Bands(u, *band_sequence(model, extent, seed), None)
+
+
+def build_layers(shape, model: LayerModel, seed: int, wrap: bool) -> np.ndarray:
+    """int64 (Z, Y, X): the phase of every voxel."""
+    return layer_bands(shape, model, seed, wrap).labels()
+
+
+def _step(x: np.ndarray) -> np.ndarray:
+    """The Gaussian's cumulative distribution at x (standard deviations), logistic form."""
+    return (1.0 / (1.0 + np.exp(-1.702 * np.clip(x, -30.0, 30.0)))).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class Bands:
+    """Bands of a scalar field: u float32 (Z, Y, X); starts (B + 1,) the band boundaries along
+    u and phases (B,) each band's phase; period: u is read modulo it (or None)."""
+
+    u: np.ndarray
+    starts: np.ndarray
+    phases: np.ndarray
+    period: float | None
+
+    def labels(self) -> np.ndarray:
+        """int64 (Z, Y, X): the phase of the band every voxel's centre falls in."""
+        return band_index(self.starts, self.phases, self.u, self.period)
+
+    def coverage(self, phases: int, sigma: float = 0.5) -> np.ndarray:
+        """float32 (Z, Y, X, K): every phase's share of each voxel, from the signed distance of
+        its centre to the nearest band boundaries measured along the field's gradient, through
+        a smooth step as wide as a Gaussian of `sigma` voxels: the smooth boundaries blurred,
+        where blurring the voxels' labels keeps their staircases along the grid."""
+        u = np.mod(self.u, self.period) if self.period is not None else self.u
+        grad = [np.gradient(self.u, axis=a) for a in range(3)]
+        width = np.maximum(np.sqrt(sum(g * g for g in grad)), 1e-6) * sigma
+        last = len(self.phases) - 1
+        j = np.clip(np.searchsorted(self.starts, u, side="right") - 1, 0, last)
+        below = _step(-(u - self.starts[j]) / width)
+        above = _step(-(self.starts[j + 1] - u) / width)
+        wrap = self.period is not None
+        lower = np.where(j > 0, j - 1, last if wrap else 0)
+        upper = np.where(j < last, j + 1, 0 if wrap else last)
+        out = np.zeros(u.shape + (phases,), np.float32)
+        for band, share in ((j, np.maximum(1.0 - below - above, 0.0)), (lower, below),
+                            (upper, above)):
+            phase = self.phases[band]
+            for k in range(phases):
+                out[..., k] += np.where(phase == k, share, 0.0)
+        return out / np.maximum(out.sum(-1, keepdims=True), 1e-6)
 
 
 def wobble_amplitude(lum: np.ndarray, angle: float, spacing: float) -> float:
@@ -309,20 +389,16 @@ def fit_layers(images, labels, analyses, ex_of_axis) -> LayerModel:
         # one exemplar shows the layers on every face, but layers along an axis would lie
         # parallel to one slice family (one flat band there): turned TILT degrees about their
         # grain (the side faces' stripe direction), two families show the exemplar's stripes
-        # along its direction and the third (the end grain) straight stripes across it; the
-        # bands (and their displacement) are made thinner so that the two show the exemplar's
-        # spacing (and waviness; `spacing` stays the spacing they show)
-        grain = stripe_direction(analyses[0].angle, 1)
-        grain = grain - (grain @ normal) * normal
-        grain /= max(np.linalg.norm(grain), 1e-9)
-        side = np.cross(grain, normal)
-        turned = np.cos(np.radians(TILT)) * normal + np.sin(np.radians(TILT)) * side
-        across = normal - (normal @ grain) * grain  # family 1's in-plane stripe normal
-        shrink = abs(float(turned @ across)) / max(float(np.linalg.norm(across)), 1e-9)
-        lengths = tuple(x * shrink for x in lengths)
-        wobble *= shrink
-        normal = turned * (1 if turned[np.argmax(np.abs(turned))] > 0 else -1)
+        # along its direction and the third (the end grain) straight stripes across it
+        normal = turned_normal(normal, stripe_direction(analyses[0].angle, 1), TILT)
         tilt = TILT
+    if single:
+        # the exemplar is itself a cut: the bands (and their displacement) are made as thick
+        # as gives the slice families the exemplar's spacing (`spacing` stays the spacing
+        # the faces are fitted to show)
+        thin = stereological_scale(normal)
+        lengths = tuple(x * thin for x in lengths)
+        wobble *= thin
     extent = labels[int(ex_of_axis[ring[0]])].shape if ring is not None else (0.0, 0.0)
     return LayerModel(normal, axis, rel, lengths, trans, wobble, spacing,
                       tuple(float(v) for v in extent), tilt)

@@ -27,7 +27,7 @@ from osmap_cli.solid.structure.fill import match_phases, match_regions
 from osmap_cli.solid.structure.profiles import profile_ids
 from osmap_cli.solid.structure.segment import Segmenter, gaussian_blur, smooth_volume
 
-COVERAGE_SIGMA = 0.5  # voxels: layers' and fields' phase boundaries antialiased this much
+COVERAGE_SIGMA = 0.5  # voxels: phase fields' boundaries antialiased this much
 MATCH_SIGMA = 0.5  # voxels: the colour matching maps the fill's content blurred this much
 
 
@@ -231,15 +231,19 @@ def build_structure(found: Plan, shape, seed: int, wrap: bool) -> Built:
         return Built(inside.astype(np.int64), identity.astype(np.float32),
                      np.stack([1.0 - share, share], -1).astype(np.float32),
                      built.owner.astype(np.int64), colours)
-    if found.kind == "layers":
-        labels = ly.build_layers(shape, found.model, seed, wrap)
-    elif found.kind == "veins":
-        labels = sh.build_sheets(shape, found.model, seed, wrap)
+    k = len(found.colours)
+    if found.kind in ("layers", "veins"):
+        bands = (ly.layer_bands if found.kind == "layers" else sh.sheet_bands)(
+            shape, found.model, seed, wrap)
+        labels = bands.labels()
+        # the bands' boundaries are smooth surfaces: antialiased from their distance along
+        # u, without the voxel staircases that blurring the labels keeps (the fill would
+        # copy them as edges along the grid)
+        coverage = bands.coverage(k)
     else:
         labels = fd.build_field(shape, found.model, seed, wrap)
-    k = len(found.colours)
-    onehot = (labels[..., None] == np.arange(k)).astype(np.float32)
-    coverage = smooth_volume(onehot, COVERAGE_SIGMA, wrap)
+        onehot = (labels[..., None] == np.arange(k)).astype(np.float32)
+        coverage = smooth_volume(onehot, COVERAGE_SIGMA, wrap)
     # the identity guide antialiased like the coverage: hard phase steps on the voxel grid
     # would make the fill copy their staircases (axis-aligned edges)
     identity = coverage @ found.colours.astype(np.float32)

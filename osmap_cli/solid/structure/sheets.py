@@ -38,6 +38,7 @@ GAIN = 0.5  # each octave half the length and half the amplitude of the one befo
 AMPLITUDES = (0.1, 0.2, 0.3, 0.45, 0.6)  # perturbation tried, x the warp length
 COHERENCE_TOLERANCE = 0.05  # the least perturbation this near the best fit is kept
 PROBE = 48  # the probe volume's side at most (else the exemplar's)
+PROBE_BANDS = 4.0  # band spacings the probe holds (at the exemplar's run lengths)
 SCALE_ROUNDS = 3
 CHAINS = 12  # band sequences tried: the one whose volume fractions are the exemplar's
 LINE_DIRECTIONS = (0.0, 45.0, 90.0, 135.0)  # degrees: lines whose runs give the bands
@@ -102,10 +103,10 @@ def _fbm(points, period, length: float, seed: int, octaves: int) -> np.ndarray:
     return out
 
 
-def build_sheets(shape, model: SheetModel, seed: int, wrap: bool) -> np.ndarray:
-    """int64 (Z, Y, X): the phase of every voxel (the band of u it falls in). A volume holds
-    few bands, so of CHAINS band sequences the one whose phase fractions in this volume are
-    nearest the exemplar's is kept. With wrap the bands repeat across the faces (a sequence
+def sheet_bands(shape, model: SheetModel, seed: int, wrap: bool) -> ly.Bands:
+    """The sheets of a volume of `shape`: u at every voxel and the bands along it. A volume
+    holds few bands, so of CHAINS band sequences the one whose phase fractions in this volume
+    are nearest the exemplar's is kept. With wrap the bands repeat across the faces (a sequence
     stretched to the period along u, the normal the nearest that wraps: sheet_coordinate)."""
     u, period = sheet_coordinate(shape, model, seed, wrap)
     scaled = replace(model, runs=tuple(r * model.scale for r in model.runs),
@@ -126,7 +127,12 @@ def build_sheets(shape, model: SheetModel, seed: int, wrap: bool) -> np.ndarray:
         err = float(np.abs(got - model.fractions).sum())
         if best is None or err < best[0]:
             best = (err, bands)
-    return ly.band_index(*best[1], u, period)
+    return ly.Bands(u, *best[1], period)
+
+
+def build_sheets(shape, model: SheetModel, seed: int, wrap: bool) -> np.ndarray:
+    """int64 (Z, Y, X): the phase of every voxel (the band of u it falls in: sheet_bands)."""
+    return sheet_bands(shape, model, seed, wrap).labels()
 
 
 def label_coherence(labels: np.ndarray) -> float:
@@ -182,7 +188,14 @@ def fit_sheets(labels, analyses, ex_of_axis, seed: int) -> SheetModel:
                        coherence=float(np.mean([label_coherence(x) for x in labels])),
                        fractions=np.bincount(joint, minlength=phases) / len(joint))
     side = min(PROBE, min(min(lb.shape) for lb in labels))
-    return fit_perturbation(model, seed, side)
+    # the probe holds PROBE_BANDS spacings: fitted on the model shrunk by `factor` (its
+    # boundary density grows by it) and grown back; a probe narrower than the bands sees
+    # one or two of them, and their boundary density says little
+    factor = max(1.0, PROBE_BANDS * spacing / side)
+    small = replace(model, runs=tuple(r / factor for r in lengths), spacing=spacing / factor,
+                    boundary=model.boundary * factor)
+    fitted = fit_perturbation(small, seed, side)
+    return replace(fitted, runs=lengths, spacing=spacing, boundary=model.boundary)
 
 
 def fit_perturbation(model: SheetModel, seed: int, side: int = PROBE) -> SheetModel:
