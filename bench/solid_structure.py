@@ -6,17 +6,21 @@ sheet shows each volume's preview cube, its three middle slices and an oblique c
 
     python bench/solid_structure.py [--sides 64,128] [--methods structure,osmap,kopf,legacy]
         [--names terrazzo_granite,...] [--sheet docs/solid_structure_64.jpg] [--json out.json]
+        [--markdown out.md] [--set KEY=VALUE] [--fill KEY=VALUE]
 
 Names are development exemplars (../shared/exemplars/small), shipped samples as `samples/NAME`
 (resized to the side like the others) or `wood_set` (samples/wood_end, _side, _top as
---x/--y/--z, at their 128 px). Prints a Markdown table (one row per volume) and the summary
-against the acceptance bars.
+--x/--y/--z, at their 128 px). Prints two Markdown tables, each once: one row per volume, then
+one row per method against the acceptance bars (BARS); --markdown writes the same to a file.
+--set changes a solid option of method structure, --fill a field of its fill (Fill).
 Needs the meters' venv (TEXMETRICS_PYTHON, as bench_solid.py).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import dataclasses
 import json
 import math
 import statistics
@@ -50,14 +54,36 @@ def granules(ex_path: Path, vol_path: Path) -> dict:
     return json.loads(out.stdout)["worst"]
 
 
-def synthesize(exemplars, side: int, method: str, seed: int = 1, changes=None):
+@contextlib.contextmanager
+def fill_changed(changes):
+    """Method structure's Fill record with `changes` (field: value) while inside."""
+    from osmap_cli.solid import method_structure
+
+    if not changes:
+        yield
+        return
+    original = method_structure.Options.from_solid.__func__
+
+    def changed(cls, opts):
+        options = original(cls, opts)
+        return dataclasses.replace(options, fill=dataclasses.replace(options.fill, **changes))
+
+    method_structure.Options.from_solid = classmethod(changed)
+    try:
+        yield
+    finally:
+        method_structure.Options.from_solid = classmethod(original)
+
+
+def synthesize(exemplars, side: int, method: str, seed: int = 1, changes=None, fill=None):
     """(voxels, seconds, structure step seconds or None, the method's report lines)."""
     from osmap_cli.solid import SolidOptions, synthesize_solid
 
     options = SolidOptions(width=side, height=side, depth=side, seed=seed,
                            method=method).replace(**dict(changes or {}))
     started = time.perf_counter()
-    result = synthesize_solid(exemplars, options)
+    with fill_changed(fill):
+        result = synthesize_solid(exemplars, options)
     seconds = time.perf_counter() - started
     structure = next((float(line.split()[2]) for line in result.report
                       if line.startswith("structure step")), None)
@@ -111,7 +137,7 @@ def cut_picture(voxels, exemplar):
                           1)
 
 
-def run(names, sides, methods, sheet=None, seed=1, changes=None, log=print):
+def run(names, sides, methods, sheet=None, seed=1, changes=None, log=print, fill=None):
     from osmap_cli.imageio import read_image, write_image
 
     rows = []
@@ -137,7 +163,8 @@ def run(names, sides, methods, sheet=None, seed=1, changes=None, log=print):
                     write_image(ex_path, exemplars[0], 8)
                 for method in methods:
                     voxels, seconds, structure_s, report = synthesize(
-                        exemplars, side, method, seed, changes if method == "structure" else None)
+                        exemplars, side, method, seed, changes if method == "structure" else None,
+                        fill if method == "structure" else None)
                     vol_path = folder / f"{Path(name).name}_{side}_{method}.npy"
                     np.save(vol_path, voxels)
                     figures = measure(ex_path, vol_path, exemplars[-1 if name == "wood_set"
@@ -193,6 +220,16 @@ def summary(rows, method) -> str:
 SUMMARY_HEADER = ("| method | granules shifts (all volumes) | max abs log2 scale | axis-energy "
                   "median (max) | hist median | lowest contrast | coh_mean median raw / "
                   "matched | profile worst error |\n|---|---|---|---|---|---|---|---|")
+BARS = ("Against the bars (granules shifts 0.85-1.18, |log2 scale| < 0.3, axis-energy median "
+        "<= 1.15 and none above 1.3, hist median <= 0.8, lowest contrast >= 0.75, coh_mean no "
+        "worse than method osmap, profile errors <= 0.10):")
+
+
+def tables(rows, methods) -> str:
+    """The per-volume table, then the summary against the bars, each once, as Markdown."""
+    lines = [HEADER, *(_row(r) for r in rows), "", BARS, "", SUMMARY_HEADER]
+    lines += [line for line in (summary(rows, m) for m in methods) if line]
+    return "\n".join(lines) + "\n"
 
 
 def _sheet(pictures, path: Path) -> None:
@@ -225,9 +262,13 @@ def main(argv=None) -> int:
     ap.add_argument("--names", default=",".join(NAMES))
     ap.add_argument("--sheet", type=Path, default=None)
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--markdown", type=Path, default=None,
+                    help="write both tables (Markdown) to this file")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="a solid tunable changed for method structure (e.g. "
                     "som_steps_per_node=0: no OS-Map training)")
+    ap.add_argument("--fill", action="append", default=[], metavar="KEY=VALUE",
+                    help="a field of method structure's fill changed (e.g. label_mismatch=0.1)")
     args = ap.parse_args(argv)
     from osmap_cli.options import option_spec
     from osmap_cli.solid import SolidOptions
@@ -236,14 +277,18 @@ def main(argv=None) -> int:
     for item in args.set:
         key, value = item.split("=", 1)
         changes[key] = option_spec(SolidOptions, key).kind(value)
+    fill = {}
+    for item in args.fill:
+        key, value = item.split("=", 1)
+        fill[key] = float(value)
+    methods = args.methods.split(",")
     print(HEADER, flush=True)
-    rows = run(args.names.split(","), [int(s) for s in args.sides.split(",")],
-               args.methods.split(","), args.sheet, changes=changes,
-               log=lambda line: print(line, flush=True))
-    print()
-    print(SUMMARY_HEADER)
-    for method in args.methods.split(","):
-        print(summary(rows, method))
+    rows = run(args.names.split(","), [int(s) for s in args.sides.split(",")], methods,
+               args.sheet, changes=changes, log=lambda line: print(line, flush=True), fill=fill)
+    text = tables(rows, methods)
+    print(text[text.index(BARS) - 1:])
+    if args.markdown is not None:
+        args.markdown.write_text(text)
     if args.json is not None:
         args.json.write_text(json.dumps(rows, indent=1, default=float))
     return 0

@@ -18,6 +18,7 @@ from osmap_cli.imageio import read_image, write_image
 from osmap_cli.solid import SolidOptions, synthesize_solid
 from osmap_cli.solid.structure import measures
 from osmap_cli.solid.structure.analysis import analyse, split_lines
+from osmap_cli.solid.structure.fill import match_phases
 from osmap_cli.solid.structure.layers import ring_centre
 from osmap_cli.solid.structure.meter import profile_meter
 from osmap_cli.solid.structure.method import build_structure, plan
@@ -85,6 +86,28 @@ def test_placement_keeps_spheres_apart_and_is_repeatable():
 
 
 # --- analysis ----------------------------------------------------------------------------
+
+
+def test_phase_matching_does_not_stretch_the_window_lattice_into_dots():
+    # a wide, nearly uniform phase (a slow ramp along x) carrying the fill's faint 2-voxel
+    # hatching along z, matched to an exemplar phase of a wider spread (and 2 % dark specks):
+    # the mapping stretches the ramp, not the hatching (on a real volume, stretched hatching
+    # turns into a grid of dark dots)
+    z, _, x = np.mgrid[0:16, 0:16, 0:16]
+    volume = (0.5 + 0.004 * (x - 7.5) + 0.01 * (z % 2 - 0.5))[..., None].astype(np.float32)
+    rng = np.random.default_rng(1)
+    exemplar = np.full((64, 64, 1), 0.5, np.float32) + rng.normal(0, 0.02, (64, 64, 1))
+    exemplar[rng.random((64, 64)) < 0.02] = 0.1
+    labels = np.zeros(volume.shape[:3], np.int64)
+    coverage = np.ones((*volume.shape[:3], 1), np.float32)
+    out = match_phases(volume, labels, coverage, [exemplar.astype(np.float32)],
+                       np.zeros(3, np.int64), [np.zeros((64, 64), np.int64)])
+    rows = np.abs(np.diff(out[..., 0], axis=0)).max()
+    # measured 0.010 (the hatching passes as it came, 0.01); stretched with the ramp: 0.049
+    assert rows < 0.02, rows
+    lattice = match_phases(volume, labels, coverage, [exemplar.astype(np.float32)],
+                           np.zeros(3, np.int64), [np.zeros((64, 64), np.int64)], nyquist=True)
+    assert np.abs(np.diff(lattice[..., 0], axis=0)).max() > 0.04  # the test sees stretching
 
 
 def test_analysis_reads_particles_layers_and_lattices(samples, cells64):

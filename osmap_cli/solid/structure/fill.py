@@ -161,13 +161,25 @@ def fill(task: SolidTask, ex_labels, ex_identity, labels, identity, params: Fill
 
 
 def match_phases(voxels: np.ndarray, labels: np.ndarray, coverage: np.ndarray, exemplars,
-                 ex_of_axis, ex_labels) -> np.ndarray:
+                 ex_of_axis, ex_labels, nyquist: bool = False) -> np.ndarray:
     """voxels with each phase's colours quantile-matched to the exemplar pixels of the same
     phase: per principal axis of the phase's exemplar colours (matching raw channels one by one
     would break the colours' correlation: a phase holding dark and red chips would gain teal
     ones). Each phase's mapping is fitted on its own voxels (labels) and applied to every voxel
     in proportion to the phase's share of it (coverage (Z, Y, X, K)): boundaries keep their
-    antialiasing and thin phases (gaps, veins) their full contrast."""
+    antialiasing and thin phases (gaps, veins) their full contrast. The mapping reads and maps
+    the colours without their highest frequency (without_nyquist), which passes unmapped: the
+    fill's window lattice (centres every 2 voxels) leaves a faint 2-voxel hatching on wide
+    uniform regions, and the mapping, stretching a nearly uniform phase's narrow spread onto the
+    exemplar's, would turn it into a grid of dark dots (the exemplar's rarest colours).
+    nyquist: map that frequency too (particles: a 1-voxel gap between stones is structure, and
+    its contrast must be the exemplar's gaps')."""
+    detail = None
+    if not nyquist:
+        smooth = without_nyquist(voxels, 3)
+        detail = voxels - smooth
+        exemplars = [without_nyquist(np.asarray(im, np.float32), 2) for im in exemplars]
+        voxels = smooth
     flat = voxels.reshape(-1, voxels.shape[-1]).astype(np.float64)
     lab = labels.ravel()
     cover = coverage.reshape(-1, coverage.shape[-1])
@@ -195,7 +207,22 @@ def match_phases(voxels: np.ndarray, labels: np.ndarray, coverage: np.ndarray, e
     keep = total > 0
     out[keep] /= total[keep, None]
     out[~keep] = flat[~keep]
-    return out.reshape(voxels.shape).astype(np.float32)
+    out = out.reshape(voxels.shape)
+    return (out if detail is None else out + detail).astype(np.float32)
+
+
+def without_nyquist(values: np.ndarray, dims: int) -> np.ndarray:
+    """values (the first `dims` axes spatial) filtered by the binomial [1, 2, 1] / 4 along each
+    spatial axis (edges mirrored): the 2-sample period is removed exactly, longer ones kept."""
+    out = values.astype(np.float32)
+    for axis in range(dims):
+        n = out.shape[axis]
+        if n < 3:
+            continue
+        before = np.take(out, np.r_[1, np.arange(n - 1)], axis)
+        after = np.take(out, np.r_[np.arange(1, n), n - 2], axis)
+        out = 0.25 * before + 0.5 * out + 0.25 * after
+    return out
 
 
 def match_regions(voxels: np.ndarray, regions: np.ndarray, targets: np.ndarray,

@@ -261,7 +261,7 @@ def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np
     low = smooth_volume(voxels, MATCH_SIGMA, wrap)
     blurred = [gaussian_blur(im, MATCH_SIGMA, wrap).astype(np.float32) for im in found.images]
     matched = match_phases(low, built.labels, built.coverage, blurred, found.ex_of_axis,
-                           found.ex_labels) + (voxels - low)
+                           found.ex_labels, nyquist=built.regions is not None) + (voxels - low)
     if built.regions is not None:
         matched = match_regions(matched, built.regions, built.region_colours,
                                 built.coverage[..., 1], pixels.min(0), pixels.max(0))

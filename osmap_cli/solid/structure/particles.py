@@ -40,6 +40,8 @@ FINAL_GAP = 1.0  # voxels: the least gap between touching particles in a volume 
 #                  1-voxel gaps: osmap_cli.solid.structure.fill, label_constraint)
 PROBE_SIDE = (32, 64)  # voxels: the fit's probe volume, four 90th-percentile diameters a side
 MIN_PROBE = 32  # voxels: the least probe side when a small volume caps it
+FILL_GROWTH = 1.1  # the fill and the colour matching read particles this much larger than built
+#                    (granules.py and texmetrics' scale on gravel and terrazzo, 64^3)
 SOURCE_MIN_AREA = 1  # px: specks too are particles (the fill alone does not make them)
 # the sizes fitted are the area-weighted mean and the 90th percentile: what the eye reads as the
 # stones' size (the many small cuts of a particle's caps, which a 2D exemplar need not show,
@@ -221,7 +223,7 @@ def _error(got: dict, want: dict) -> float:
 
 
 def fit(sources: ParticleSources, seed: int, probe: int | None = None, log=None,
-        factor: float = 1.0, cap: int | None = None):
+        factor: float = 1.0, cap: int | None = None, growth: float = FILL_GROWTH):
     """(ParticleParams, the best probe's cut statistics in voxels): rounds of build, cut,
     measure, correct on a periodic probe volume built as the volumes will be (`factor`: the
     sources are in pixels `factor` times smaller than a voxel, as for build; the least gap
@@ -230,8 +232,9 @@ def fit(sources: ParticleSources, seed: int, probe: int | None = None, log=None,
     most twice `cap` (at least MIN_PROBE): a tiny volume shows no more than itself, and a
     degenerate exemplar (a few large profiles among many specks) asks for many particles.
     Sparse particles: size sets the diameters, the number the area fraction; dense ones
-    (cells): the number sets the diameters, the gap the fraction."""
-    tf = sources.target.scaled(1.0 / factor).figures()
+    (cells): the number sets the diameters, the gap the fraction. The diameters are fitted
+    `growth` times smaller than the exemplar's: the fill reads the particles that much larger."""
+    tf = sources.target.scaled(1.0 / (factor * growth)).figures()
     if probe is None:
         probe = int(np.clip(4 * max(tf["d90"], 8.0), *PROBE_SIDE))
         if cap is not None:
