@@ -12,7 +12,6 @@ exemplars are those downscaled by OpenImageIO. Quality runs texmetrics.py in its
 
 from __future__ import annotations
 
-import json
 import os
 import statistics
 import subprocess
@@ -21,50 +20,17 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+from solid_meters import (
+    NAMES,
+    REPO,
+    TEXMETRICS_PY,
+    load_exemplar,
+    texmetrics,
+    worst_axis,
+)
 
-REPO = Path(__file__).resolve().parent.parent
-# ../shared beside the checkout (a worktree one level deeper finds it too)
-SHARED = next((p / "shared" for p in REPO.parents if (p / "shared" / "exemplars").is_dir()),
-              REPO.parent / "shared")
-EXEMPLARS = SHARED / "exemplars" / "small"
-TEXMETRICS = SHARED / "tools" / "texmetrics.py"
-SOLIDLOOK = SHARED / "tools" / "solidlook.py"
 METHODS = ("structure", "osmap", "kopf", "legacy")
 TIMED = ("structure", "osmap", "kopf")
-TEXMETRICS_PY = Path(os.environ.get("TEXMETRICS_PYTHON", "/tmp/texmetrics-venv/bin/python"))
-NAMES = ("terrazzo_granite", "marble_swirl_green", "wood_planks_horizontal",
-         "gravel_green_stones")
-
-
-def _exemplar(name: str, side: int) -> np.ndarray:
-    from osmap_cli.imageio import read_image
-    from osmap_cli.texture.pyramid import resize
-
-    image = read_image(EXEMPLARS / f"{name}.png").pixels
-    return image if image.shape[0] == side else resize(image, side, side)
-
-
-def _metrics(exemplar_path: Path, volume_path: Path) -> dict:
-    out = subprocess.run([str(TEXMETRICS_PY), str(TEXMETRICS), str(exemplar_path),
-                          str(volume_path), "--json"], capture_output=True, text=True, check=True)
-    return json.loads(out.stdout)
-
-
-def _matched_coherence(exemplar_path: Path, volume_path: Path, sigma: float = 1.0) -> float:
-    """Worst-axis coh_mean with exemplar and volume low-passed alike (bench/lowpass.py): blur
-    no longer scores better, so sharp and soft methods compare on structure."""
-    ex_lp = volume_path.with_name(volume_path.stem + "_lp_ex.png")
-    vol_lp = volume_path.with_name(volume_path.stem + "_lp.npy")
-    subprocess.run([str(TEXMETRICS_PY), str(REPO / "bench" / "lowpass.py"), str(exemplar_path),
-                    str(volume_path), str(sigma), str(ex_lp), str(vol_lp)], check=True)
-    return _worst(_metrics(ex_lp, vol_lp))["coh_mean"]
-
-
-def _look(exemplar_path: Path, volume_path: Path) -> dict:
-    out = subprocess.run([str(TEXMETRICS_PY), str(SOLIDLOOK), str(exemplar_path),
-                          str(volume_path), "--json"], capture_output=True, text=True, check=True)
-    return json.loads(out.stdout)
 
 
 def _synth_2d(exemplar_path: Path, size: str, folder: Path) -> dict:
@@ -72,11 +38,7 @@ def _synth_2d(exemplar_path: Path, size: str, folder: Path) -> dict:
     out = folder / f"2d_{exemplar_path.stem}.png"
     subprocess.run([sys.executable, "-m", "osmap_cli.cli", "synth", str(exemplar_path), "-o",
                     str(out), "--size", size, "--seed", "1", "-q"], check=True)
-    return _metrics(exemplar_path, out)
-
-
-def _worst(report: dict) -> dict:
-    return report.get("worst") or report["2d"]
+    return texmetrics(exemplar_path, out)
 
 
 def _unseen_material_row(name: str, side: int, folder: Path) -> str:
@@ -87,7 +49,7 @@ def _unseen_material_row(name: str, side: int, folder: Path) -> str:
     against copying synthesis on this meter."""
     from osmap_cli.imageio import write_image
 
-    image = _exemplar(name, side)
+    image = load_exemplar(name, side)
     half = side // 2
     unseen, copying = [], []
     for cut, (seen, held_out) in {"top": (image[:half], image[half:]),
@@ -96,9 +58,9 @@ def _unseen_material_row(name: str, side: int, folder: Path) -> str:
         held_path = folder / f"{name}_{side}_{cut}_held_out.png"
         write_image(seen_path, seen, 8)
         write_image(held_path, held_out, 8)
-        unseen.append(_worst(_metrics(seen_path, held_path))["coh_mean"])
+        unseen.append(worst_axis(texmetrics(seen_path, held_path))["coh_mean"])
         size = f"{2 * seen.shape[1]}x{2 * seen.shape[0]}"
-        copying.append(_worst(_synth_2d(seen_path, size, folder))["coh_mean"])
+        copying.append(worst_axis(_synth_2d(seen_path, size, folder))["coh_mean"])
     ratios = [u / c for u, c in zip(unseen, copying)]
     return (f"| {name} | {side} x {half} | {' / '.join(f'{u:.2f}' for u in unseen)} | "
             f"{' / '.join(f'{c:.2f}' for c in copying)} | "
@@ -111,7 +73,7 @@ def _timing_rows(quick: bool) -> list[str]:
 
     rows = []
     for name in ("marble_swirl_green", "gravel_green_stones"):
-        exemplar = _exemplar(name, 128)
+        exemplar = load_exemplar(name, 128)
         for method in TIMED:
             synthesize([exemplar], 16, method)  # compile
             for side, runs in ((64, 1 if quick else 3), (128, 1 if quick else 2)):

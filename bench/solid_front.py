@@ -6,7 +6,7 @@ start), the guide channels' weight and reach, the final colour matching, the win
 
     python bench/solid_front.py [--side 64] [--only NAME,NAME] [--sheet FILE.jpg]
 
-Prints a Markdown table. Needs the meters' venv (TEXMETRICS_PYTHON, as bench_solid.py).
+Prints a Markdown table. Needs the meters' venv (TEXMETRICS_PYTHON, as bench/solid_meters.py).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from bench_solid import NAMES
+from solid_meters import NAMES
 from solid_structure import SUMMARY_HEADER, run, summary
 
 # (name, method, option changes, what it stands for)

@@ -8,7 +8,7 @@ the exemplar's spacing), and a contact sheet of the volumes at each angle
     python bench/solid_sheets_front.py [--tilts 25,35,45] [--axis grain|diagonal] [--sides 64]
         [--names wood_planks_horizontal] [--pictures FOLDER]
 
-Needs the meters' venv (TEXMETRICS_PYTHON, as bench_solid.py).
+Needs the meters' venv (TEXMETRICS_PYTHON, as bench/solid_meters.py).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import solid_structure as bench
-from bench_solid import _exemplar, _metrics
+from solid_meters import load_exemplar, texmetrics
 
 from osmap_cli.solid.structure import layers as ly
 
@@ -56,7 +56,7 @@ def main(argv=None) -> int:
             pictures = []
             for name in args.names.split(","):
                 for side in (int(s) for s in args.sides.split(",")):
-                    exemplar = _exemplar(name, side)
+                    exemplar = load_exemplar(name, side)
                     ex_path = folder / f"{name}_{side}.png"
                     write_image(ex_path, exemplar, 8)
                     voxels, _, _, report = bench.synthesize([exemplar], side, "structure")
@@ -66,7 +66,7 @@ def main(argv=None) -> int:
 
                     normal = plan([exemplar], np.zeros(3, np.int64), seed=1).model.normal
                     shown = ly.face_spacings(normal) * ly.stereological_scale(normal)
-                    axes = _metrics(ex_path, vol_path)
+                    axes = texmetrics(ex_path, vol_path)
                     per_axis = " / ".join(f"{axes[a]['scale']:.2f}" for a in ("x", "y", "z"))
                     r = bench.measure(ex_path, vol_path, exemplar, voxels)
                     print(f"| {name} | {side} | {tilt:g} | "

@@ -13,7 +13,7 @@ Names are development exemplars (../shared/exemplars/small), shipped samples as 
 --x/--y/--z, at their 128 px). Prints two Markdown tables, each once: one row per volume, then
 one row per method against the acceptance bars (BARS); --markdown writes the same to a file.
 --set changes a solid option of method structure, --fill a field of its fill (Fill).
-Needs the meters' venv (TEXMETRICS_PYTHON, as bench_solid.py).
+Needs the meters' venv (TEXMETRICS_PYTHON, as bench/solid_meters.py).
 """
 
 from __future__ import annotations
@@ -30,16 +30,16 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_solid import (
+from solid_meters import (
     NAMES,
     REPO,
     SHARED,
     TEXMETRICS_PY,
-    _exemplar,
-    _look,
-    _matched_coherence,
-    _metrics,
-    _worst,
+    load_exemplar,
+    matched_coherence,
+    solidlook,
+    texmetrics,
+    worst_axis,
 )
 
 GRANULES = SHARED / "tools" / "granules.py"
@@ -93,13 +93,13 @@ def synthesize(exemplars, side: int, method: str, seed: int = 1, changes=None, f
 def measure(ex_path: Path, vol_path: Path, exemplar, voxels) -> dict:
     from osmap_cli.solid.structure.meter import profile_meter
 
-    worst = _worst(_metrics(ex_path, vol_path))
-    look = _look(ex_path, vol_path)
+    worst = worst_axis(texmetrics(ex_path, vol_path))
+    look = solidlook(ex_path, vol_path)
     gran = granules(ex_path, vol_path)
     prof = profile_meter(exemplar, voxels)
     return {"axis": look["worst_axis_ratio"], "contrast": look["lowest_contrast_ratio"],
             "stripe": look["worst_stripe_ratio"], "hist": worst["hist"],
-            "coh": worst["coh_mean"], "matched": _matched_coherence(ex_path, vol_path),
+            "coh": worst["coh_mean"], "matched": matched_coherence(ex_path, vol_path),
             "scale": worst["scale"], "bright": gran["bright_shift"], "dark": gran["dark_shift"],
             "profile": prof["worst"] if prof else None,
             "profile_detail": prof}
@@ -157,7 +157,7 @@ def run(names, sides, methods, sheet=None, seed=1, changes=None, log=print, fill
                     ex_path = folder / f"{Path(name).name}_{side}.png"
                     write_image(ex_path, exemplars[0], 8)
                 else:
-                    exemplars = [_exemplar(name, side)]
+                    exemplars = [load_exemplar(name, side)]
                     ex_side = side
                     ex_path = folder / f"{name}_{side}.png"
                     write_image(ex_path, exemplars[0], 8)

@@ -1,0 +1,57 @@
+"""The solid benches' shared pieces: where the development exemplars and the independent
+meters are, and how a volume is read by texmetrics.py, solidlook.py and at matched sharpness
+(bench/lowpass.py). The meters run in their own venv (TEXMETRICS_PYTHON)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+# ../shared beside the checkout (a worktree one level deeper finds it too)
+SHARED = next((p / "shared" for p in REPO.parents if (p / "shared" / "exemplars").is_dir()),
+              REPO.parent / "shared")
+EXEMPLARS = SHARED / "exemplars" / "small"
+TEXMETRICS = SHARED / "tools" / "texmetrics.py"
+SOLIDLOOK = SHARED / "tools" / "solidlook.py"
+TEXMETRICS_PY = Path(os.environ.get("TEXMETRICS_PYTHON", "/tmp/texmetrics-venv/bin/python"))
+NAMES = ("terrazzo_granite", "marble_swirl_green", "wood_planks_horizontal",
+         "gravel_green_stones")
+
+
+def load_exemplar(name: str, side: int) -> np.ndarray:
+    from osmap_cli.imageio import read_image
+    from osmap_cli.texture.pyramid import resize
+
+    image = read_image(EXEMPLARS / f"{name}.png").pixels
+    return image if image.shape[0] == side else resize(image, side, side)
+
+
+def texmetrics(exemplar_path: Path, volume_path: Path) -> dict:
+    out = subprocess.run([str(TEXMETRICS_PY), str(TEXMETRICS), str(exemplar_path),
+                          str(volume_path), "--json"], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout)
+
+
+def matched_coherence(exemplar_path: Path, volume_path: Path, sigma: float = 1.0) -> float:
+    """Worst-axis coh_mean with exemplar and volume low-passed alike (bench/lowpass.py): blur
+    no longer scores better, so sharp and soft methods compare on structure."""
+    ex_lp = volume_path.with_name(volume_path.stem + "_lp_ex.png")
+    vol_lp = volume_path.with_name(volume_path.stem + "_lp.npy")
+    subprocess.run([str(TEXMETRICS_PY), str(REPO / "bench" / "lowpass.py"), str(exemplar_path),
+                    str(volume_path), str(sigma), str(ex_lp), str(vol_lp)], check=True)
+    return worst_axis(texmetrics(ex_lp, vol_lp))["coh_mean"]
+
+
+def solidlook(exemplar_path: Path, volume_path: Path) -> dict:
+    out = subprocess.run([str(TEXMETRICS_PY), str(SOLIDLOOK), str(exemplar_path),
+                          str(volume_path), "--json"], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout)
+
+
+def worst_axis(report: dict) -> dict:
+    return report.get("worst") or report["2d"]
