@@ -173,7 +173,7 @@ def match_phases(voxels: np.ndarray, labels: np.ndarray, coverage: np.ndarray, e
     uniform regions, and the mapping, stretching a nearly uniform phase's narrow spread onto the
     exemplar's, would turn it into a grid of dark dots (the exemplar's rarest colours).
     nyquist: map that frequency too (particles: a 1-voxel gap between stones is structure, and
-    its contrast must be the exemplar's gaps')."""
+    its contrast must be the exemplar's gaps'; layers: their fine grain)."""
     detail = None
     if not nyquist:
         smooth = without_nyquist(voxels, 3)

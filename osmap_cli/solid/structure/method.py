@@ -260,8 +260,11 @@ def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np
     # low-pass), it does not amplify the fill's faint 1-voxel hatching, which stays as it is
     low = smooth_volume(voxels, MATCH_SIGMA, wrap)
     blurred = [gaussian_blur(im, MATCH_SIGMA, wrap).astype(np.float32) for im in found.images]
+    # the 2-voxel period is mapped too for particles (a 1-voxel gap is structure) and layers
+    # (left unmapped, the grain reads coarser: planks' scale 1.26 against 0.83 at 64^3)
+    nyquist = built.regions is not None or found.kind == "layers"
     matched = match_phases(low, built.labels, built.coverage, blurred, found.ex_of_axis,
-                           found.ex_labels, nyquist=built.regions is not None) + (voxels - low)
+                           found.ex_labels, nyquist=nyquist) + (voxels - low)
     if built.regions is not None:
         matched = match_regions(matched, built.regions, built.region_colours,
                                 built.coverage[..., 1], pixels.min(0), pixels.max(0))
