@@ -253,22 +253,17 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice, pha
                             n_inside += 1
                             if area[qy, qx] > p.max_area:
                                 excess += area[qy, qx] / p.max_area - 1.0
-                    seam = 0.0
+                    # the current position matches itself (matching cost 0): its cost is its
+                    # seam and guide terms alone
+                    best = 0.0
                     if p.seam != 0.0:
-                        seam = p.seam * (0 + excess)
+                        best = p.seam * excess
                     if p.guide != 0.0:
                         gy = min(max(int(cy + 0.5), 0), gex.shape[0] - 1)
                         gx = min(max(int(cx + 0.5), 0), gex.shape[1] - 1)
                         d = gex[gy, gx] - gout[y, x]
-                        seam = seam + p.guide * d * d
-                    best = np.inf
-                    if not seam >= best:
-                        factor = 1.0 + p.lam * occ[int(cy), int(cx)]
-                        limit = (best - seam) / factor
-                        total = 0.0
-                        if not total >= limit:
-                            best = seam + total * factor
-                    if best <= p.seam * (n_inside + 0.0):
+                        best = best + p.guide * d * d
+                    if best <= p.seam * n_inside:
                         dst[y, x, 0] = src[y, x, 0]
                         dst[y, x, 1] = src[y, x, 1]
                         continue
@@ -329,7 +324,7 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice, pha
                 if c > n_listed + p.n_random + 1:
                     break
                 if c == 1:
-                    if n_inside >= 0 and best <= p.seam * (n_inside + 0.0):
+                    if n_inside >= 0 and best <= p.seam * n_inside:
                         break  # settled: no other candidate can beat the current position
                     # coherent candidates from the 8 neighbours, each followed by its k most
                     # similar positions

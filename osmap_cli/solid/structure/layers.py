@@ -261,11 +261,6 @@ def layer_bands(shape, model: LayerModel, seed: int, wrap: bool) -> Bands:
     return Bands(u, *band_sequence(model, extent, seed), None)
 
 
-def build_layers(shape, model: LayerModel, seed: int, wrap: bool) -> np.ndarray:
-    """int64 (Z, Y, X): the phase of every voxel."""
-    return layer_bands(shape, model, seed, wrap).labels()
-
-
 def _step(x: np.ndarray) -> np.ndarray:
     """The Gaussian's cumulative distribution at x (standard deviations), logistic form."""
     return (1.0 / (1.0 + np.exp(-1.702 * np.clip(x, -30.0, 30.0)))).astype(np.float32)
