@@ -161,7 +161,7 @@ def fill(task: SolidTask, ex_labels, ex_identity, labels, identity, params: Fill
 
 
 def match_phases(voxels: np.ndarray, labels: np.ndarray, coverage: np.ndarray, exemplars,
-                 ex_of_axis, ex_labels, nyquist: bool = False) -> np.ndarray:
+                 ex_of_axis, ex_labels, nyquist: bool = False, wrap: bool = False) -> np.ndarray:
     """voxels with each phase's colours quantile-matched to the exemplar pixels of the same
     phase: per principal axis of the phase's exemplar colours (matching raw channels one by one
     would break the colours' correlation: a phase holding dark and red chips would gain teal
@@ -173,10 +173,11 @@ def match_phases(voxels: np.ndarray, labels: np.ndarray, coverage: np.ndarray, e
     uniform regions, and the mapping, stretching a nearly uniform phase's narrow spread onto the
     exemplar's, would turn it into a grid of dark dots (the exemplar's rarest colours).
     nyquist: map that frequency too (particles: a 1-voxel gap between stones is structure, and
-    its contrast must be the exemplar's gaps'; layers: their fine grain)."""
+    its contrast must be the exemplar's gaps'; layers: their fine grain). wrap: the volume is
+    periodic (its filter wraps, so the wrap stays seamless)."""
     detail = None
     if not nyquist:
-        smooth = without_nyquist(voxels, 3)
+        smooth = without_nyquist(voxels, 3, wrap)
         detail = voxels - smooth
         exemplars = [without_nyquist(np.asarray(im, np.float32), 2) for im in exemplars]
         voxels = smooth
@@ -211,16 +212,17 @@ def match_phases(voxels: np.ndarray, labels: np.ndarray, coverage: np.ndarray, e
     return (out if detail is None else out + detail).astype(np.float32)
 
 
-def without_nyquist(values: np.ndarray, dims: int) -> np.ndarray:
+def without_nyquist(values: np.ndarray, dims: int, wrap: bool = False) -> np.ndarray:
     """values (the first `dims` axes spatial) filtered by the binomial [1, 2, 1] / 4 along each
-    spatial axis (edges mirrored): the 2-sample period is removed exactly, longer ones kept."""
+    spatial axis (edges mirrored, or wrapped with `wrap`): the 2-sample period is removed
+    exactly, longer ones kept."""
     out = values.astype(np.float32)
     for axis in range(dims):
         n = out.shape[axis]
         if n < 3:
             continue
-        before = np.take(out, np.r_[1, np.arange(n - 1)], axis)
-        after = np.take(out, np.r_[np.arange(1, n), n - 2], axis)
+        before = np.take(out, np.r_[n - 1 if wrap else 1, np.arange(n - 1)], axis)
+        after = np.take(out, np.r_[np.arange(1, n), 0 if wrap else n - 2], axis)
         out = 0.25 * before + 0.5 * out + 0.25 * after
     return out
 

@@ -264,7 +264,7 @@ def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np
     # (left unmapped, the grain reads coarser: planks' scale 1.26 against 0.83 at 64^3)
     nyquist = built.regions is not None or found.kind == "layers"
     matched = match_phases(low, built.labels, built.coverage, blurred, found.ex_of_axis,
-                           found.ex_labels, nyquist=nyquist) + (voxels - low)
+                           found.ex_labels, nyquist=nyquist, wrap=wrap) + (voxels - low)
     if built.regions is not None:
         matched = match_regions(matched, built.regions, built.region_colours,
                                 built.coverage[..., 1], pixels.min(0), pixels.max(0))
