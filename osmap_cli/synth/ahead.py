@@ -1,0 +1,60 @@
+"""The exemplar's side of each pyramid level (its appearance features and k-NN table) computed
+on a helper thread, one level ahead of the refinement that uses it.
+
+Both depend on the exemplar's level and its valid box alone, not on the output, so a level's can
+be computed while the main thread trains the OS-Map (the coarsest level) or refines and aligns
+the coarser level. The training and the alignment run on one core: the helper's k-NN bands take
+the other. The same values whichever thread computes them (the k-NN kernel's row bands write
+disjoint rows; the features' BLAS is single-threaded), so the same bytes; with one thread
+(`NUMBA_NUM_THREADS=1`, a cluster worker's share) everything is computed in turn, on the caller's
+thread, when it is taken.
+
+    ahead = LevelsAhead(opts)
+    ahead.submit(level, image, lo, hi)       # as soon as the level's valid box is known
+    feat, knn = ahead.take(level)            # when its refinement starts
+    ahead.close()                            # in a finally: drops what was not taken
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import Future, ThreadPoolExecutor
+
+from osmap_cli.synth.options import SynthOptions
+from osmap_cli.synth.refine import knn_candidates
+from osmap_cli.texture.features import appearance_features
+from osmap_kernels.bands import thread_count
+
+
+def level_inputs(image, lo, hi, opts: SynthOptions):
+    """(features, k-NN table) of one exemplar level, as refine() takes them."""
+    feat = appearance_features([image], opts.feature_dims)[0]
+    return feat, knn_candidates(feat, lo, hi, opts)
+
+
+class LevelsAhead:
+    """Features and k-NN tables of levels submitted in the order they are needed (see the module
+    docstring)."""
+
+    def __init__(self, opts: SynthOptions):
+        self._opts = opts
+        self._pending: dict[int, Future | tuple] = {}
+        self._pool = (ThreadPoolExecutor(1, thread_name_prefix="osmap-ahead")
+                      if thread_count() > 1 else None)
+
+    def submit(self, level: int, image, lo, hi) -> None:
+        if self._pool is None:
+            self._pending[level] = (image, lo, hi)
+        else:
+            self._pending[level] = self._pool.submit(level_inputs, image, lo, hi, self._opts)
+
+    def take(self, level: int):
+        """(feat, knn) of a submitted level."""
+        work = self._pending.pop(level)
+        if isinstance(work, Future):
+            return work.result()
+        return level_inputs(*work, self._opts)
+
+    def close(self) -> None:
+        self._pending.clear()
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
