@@ -9,8 +9,13 @@ disjoint rows; the features' BLAS is single-threaded), so the same bytes; with o
 (`NUMBA_NUM_THREADS=1`, a cluster worker's share) everything is computed in turn, on the caller's
 thread, when it is taken.
 
+Right after the coarsest level's, the helper also loads the kernels that the refinement and the
+render call (`load_kernels`), from Numba's cache, while the main thread trains the OS-Map: else
+the main thread loads each at its first call (about 0.05 s of a 256x256 run's wall time).
+
     ahead = LevelsAhead(opts)
     ahead.submit(level, image, lo, hi)       # as soon as the level's valid box is known
+    ahead.load_kernels()                     # the helper's next task (threaded only)
     feat, knn = ahead.take(level)            # when its refinement starts
     ahead.close()                            # in a finally: drops what was not taken
 """
@@ -31,6 +36,23 @@ def level_inputs(image, lo, hi, opts: SynthOptions):
     return feat, knn_candidates(feat, lo, hi, opts)
 
 
+def load_kernels() -> None:
+    """Load the refinement's and the render's kernels (a tiny run with a real run's argument
+    types: osmap_cli.synth.warm). Only a head start: whatever goes wrong here goes wrong again,
+    and is reported, where the run calls them."""
+    import numpy as np
+
+    from osmap_cli.synth.render import render
+    from osmap_cli.synth.warm import compile_group
+
+    try:
+        compile_group("refine")
+        pos = np.full((8, 8, 2), 4.0, np.float32)
+        render(np.zeros((16, 16, 3), np.float32), pos, None, False, 2)
+    except Exception:  # noqa: BLE001, S110 - see the docstring
+        pass
+
+
 class LevelsAhead:
     """Features and k-NN tables of levels submitted in the order they are needed (see the module
     docstring)."""
@@ -46,6 +68,10 @@ class LevelsAhead:
             self._pending[level] = (image, lo, hi)
         else:
             self._pending[level] = self._pool.submit(level_inputs, image, lo, hi, self._opts)
+
+    def load_kernels(self) -> None:
+        if self._pool is not None:
+            self._pool.submit(load_kernels)
 
     def take(self, level: int):
         """(feat, knn) of a submitted level."""

@@ -100,6 +100,7 @@ def run_levels(loop: LevelLoop, opts: SynthOptions, progress=None):
     try:
         coarsest = frame(levels - 1)
         ahead.submit(levels - 1, loop.pyramid[levels - 1], *coarsest[1:])
+        ahead.load_kernels()
         return _levels(loop, opts, levels, frame, coarsest, ahead, advance)
     finally:
         ahead.close()
