@@ -53,6 +53,17 @@ def load_kernels() -> None:
         pass
 
 
+def _same_threads(threads: int) -> None:
+    """The helper's row bands on as many threads as its caller's: Numba's thread count is per
+    thread once its threading layer is up (a cluster job sets it, osmap_cli.cluster)."""
+    from numba.np.ufunc import parallel
+
+    if parallel._is_initialized:
+        import numba
+
+        numba.set_num_threads(threads)
+
+
 class LevelsAhead:
     """Features and k-NN tables of levels submitted in the order they are needed (see the module
     docstring)."""
@@ -60,8 +71,10 @@ class LevelsAhead:
     def __init__(self, opts: SynthOptions):
         self._opts = opts
         self._pending: dict[int, Future | tuple] = {}
-        self._pool = (ThreadPoolExecutor(1, thread_name_prefix="osmap-ahead")
-                      if thread_count() > 1 else None)
+        threads = thread_count()
+        self._pool = (ThreadPoolExecutor(1, thread_name_prefix="osmap-ahead",
+                                         initializer=_same_threads, initargs=(threads,))
+                      if threads > 1 else None)
 
     def submit(self, level: int, image, lo, hi) -> None:
         if self._pool is None:
