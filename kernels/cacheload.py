@@ -3,10 +3,15 @@
 Before it loads any cached kernel, Numba refreshes every typing and lowering registry of its CPU
 target: it imports dozens of implementation modules and installs thousands of templates, about
 0.07 CPU s of a 256x256 `osmap synth`, though machine code read from the cache uses none of
-them, only Numba's runtime (NRT), which is set up here instead. A kernel that still needs the
-registries (compiled in object mode), or a load that fails this way, gets the refresh and
-Numba's own load after all; a compile refreshes them itself. Only on the Numba versions it was
-checked against (outputs byte-identical, tests green); any other keeps Numba's own loading.
+them, only Numba's runtime (NRT), which is set up here instead. Likewise a cached kernel's
+environment names the module of every Numba function it inlined (numba.np.arrayobj for np.empty)
+and Numba imports that module to rebuild it, pulling in most of Numba's implementation (its
+unicode, set and masked-array support: about 0.05 s); an environment's module globals are only
+read by object-mode code, so one whose module is not imported yet is rebuilt here with its name
+alone. A kernel that still needs the registries (compiled in object mode), or a load that fails
+this way, gets the refresh and Numba's own load after all; a compile refreshes them itself. Only
+on the Numba versions it was checked against (outputs byte-identical, tests green); any other
+keeps Numba's own loading.
 
 The console script sets OSMAP_QUICK_LOADS=1 (its worker processes inherit it); importing
 osmap_kernels then turns this on. A library user's process keeps Numba's behaviour.
@@ -26,6 +31,7 @@ def quick_loads() -> bool:
     if not numba.__version__.startswith(QUICK_LOADS_CHECKED):
         return False
     try:
+        from numba.core import environment
         from numba.core.caching import Cache
         from numba.core.runtime.nrt import rtsys
     except ImportError:
@@ -46,7 +52,28 @@ def quick_loads() -> bool:
 
     load_overload.quick = True
     Cache.load_overload = load_overload
+    environment._rebuild_env = _quick_rebuild_env(environment._rebuild_env)
     return True
+
+
+def _quick_rebuild_env(numba_rebuild):
+    """Numba's environment rebuild (unpickling a cached kernel), without importing a module
+    that is not imported yet: nopython code reads only the environment's constants."""
+    import sys
+
+    from numba.core.environment import Environment, lookup_environment
+
+    def rebuild_env(modname, consts, env_name):
+        if modname in sys.modules or lookup_environment(env_name) is not None:
+            return numba_rebuild(modname, consts, env_name)
+        env = Environment({"__name__": modname})
+        env.consts[:] = consts
+        env.env_name = env_name
+        Environment._memo[env_name] = env
+        return env
+
+    rebuild_env.quick = True
+    return rebuild_env
 
 
 def start_up_done() -> None:

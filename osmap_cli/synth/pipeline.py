@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from osmap_cli.synth.ahead import LevelsAhead, level_inputs
 from osmap_cli.synth.lattice import Lattice
 from osmap_cli.synth.options import SynthOptions
 from osmap_cli.synth.organise import organise
@@ -22,7 +23,6 @@ from osmap_cli.synth.regular import (
     wrapped,
 )
 from osmap_cli.synth.render import render, render_settings
-from osmap_cli.texture.features import appearance_features
 from osmap_cli.texture.levels import level_count
 from osmap_cli.texture.pyramid import build_pyramid, level_shapes
 
@@ -91,11 +91,31 @@ def run_levels(loop: LevelLoop, opts: SynthOptions, progress=None):
         if progress is not None:
             progress(units / total)
 
-    pos = jac_field = constraint = None
+    def frame(level):
+        jac = loop.jacobian_field(loop.out_shapes[level])
+        return (jac, *loop.bounds(level, loop.pyramid[level].shape[:2], jac))
+
+    # the exemplar's features and k-NN table of a level are computed a level ahead (ahead.py)
+    ahead = LevelsAhead(opts)
+    try:
+        coarsest = frame(levels - 1)
+        ahead.submit(levels - 1, loop.pyramid[levels - 1], *coarsest[1:])
+        ahead.load_kernels()
+        return _levels(loop, opts, levels, frame, coarsest, ahead, advance)
+    finally:
+        ahead.close()
+
+
+def _levels(loop: LevelLoop, opts: SynthOptions, levels: int, frame, coarsest, ahead, advance):
+    """run_levels' loop over the levels, coarsest first (`coarsest`: its frame, submitted)."""
+    pos = constraint = None
+    current = coarsest
     for level in range(levels - 1, -1, -1):
         image = loop.pyramid[level]
-        jac_field = loop.jacobian_field(loop.out_shapes[level])
-        lo, hi = loop.bounds(level, image.shape[:2], jac_field)
+        jac_field, lo, hi = current
+        if level > 0:
+            current = frame(level - 1)
+            ahead.submit(level - 1, loop.pyramid[level - 1], *current[1:])
         constraint = None if loop.constraint is None else loop.constraint(level, lo, hi)
         if pos is None:
             pos = loop.start(level, lo, hi, constraint)
@@ -119,11 +139,13 @@ def run_levels(loop: LevelLoop, opts: SynthOptions, progress=None):
         for round_ in range(loop.rounds):
             if round_:
                 image = loop.restyle(level, image, pos)
-            feat = appearance_features([image], opts.feature_dims)[0]
+                feat, knn = level_inputs(image, lo, hi, opts)
+            else:
+                feat, knn = ahead.take(level)
             pos = refine(pos, feat, jac_field, lo, hi, sweeps, opts, wrap=opts.tileable,
                          seed=opts.seed, salt=level + 100 * round_, level_scale=2 ** level,
                          coarsest_scale=2 ** (levels - 1), progress=advance,
-                         constraint=constraint, lattice=lattice,
+                         constraint=constraint, lattice=lattice, knn=knn,
                          guides=None if loop.guides is None else loop.guides[level])
     return pos, jac_field, constraint
 

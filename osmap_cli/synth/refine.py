@@ -31,7 +31,7 @@ _NO_GUIDE = np.zeros((1, 1), np.float32)
 def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, sweeps: int,
            opts: SynthOptions, *, wrap: bool, seed: int, salt: int, level_scale: int = 1,
            coarsest_scale: int = 1, progress=None, constraint=None, guides=None,
-           lattice=None) -> np.ndarray:
+           lattice=None, knn=None) -> np.ndarray:
     """`sweeps` red-black coherence sweeps over pos (H, W, 2); returns the new field.
 
     `constraint` (osmap_cli.synth.constraints.LevelConstraint, optional) pins some pixels to
@@ -41,13 +41,13 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
     a whole window's feature variance (osmap_cli.synth.guide).
     `lattice` (osmap_cli.synth.regular.LevelLattice, optional): every candidate is snapped to a
     position consistent with the lattice, and whole copies move only along it (pos should be
-    consistent already: LevelLattice.snap)."""
+    consistent already: LevelLattice.snap).
+    `knn` (optional): feat's k-NN table (knn_candidates), when it is computed already."""
     # C order whatever made pos (upsample's arithmetic keeps a strided layout): the kernels then
     # compile, load and run for one array layout only
     pos = np.ascontiguousarray(pos, np.float32)
-    knn = similar_positions(feat, lo, hi, opts.knn, MAX_KNN_REFERENCES)
-    if opts.knn == 0:
-        knn = np.ascontiguousarray(knn[:, :, :0])  # one array layout for the kernel
+    if knn is None:
+        knn = knn_candidates(feat, lo, hi, opts)
     # seam penalty unit: a whole window's feature variance, shared among the 8 neighbours
     variance = feature_variance([feat])
     window = (2 * opts.patch_radius + 1) ** 2
@@ -96,6 +96,14 @@ def refine(pos: np.ndarray, feat: np.ndarray, jac_field: np.ndarray, lo, hi, swe
         if progress is not None:
             progress(1)
     return pos
+
+
+def knn_candidates(feat: np.ndarray, lo, hi, opts: SynthOptions) -> np.ndarray:
+    """The k-NN table of feat's positions inside [lo, hi] that refine's kernel reads."""
+    knn = similar_positions(feat, lo, hi, opts.knn, MAX_KNN_REFERENCES)
+    if opts.knn == 0:
+        knn = np.ascontiguousarray(knn[:, :, :0])  # one array layout for the kernel
+    return knn
 
 
 def _occupancy(pos: np.ndarray, source_shape, constraint) -> np.ndarray:
