@@ -26,6 +26,13 @@ NORMALS = ((1.0, 1.0, 1.0), (1.0, -1.0, 1.0), (1.0, 1.0, -1.0), (-1.0, 1.0, 1.0)
 OFFSETS = (-0.3, -0.15, 0.0, 0.15, 0.3)  # x the side
 
 
+def diagonal_cuts(volume: np.ndarray, wrap: bool = False) -> list:
+    """The meter's diagonal planes through `volume` (nearest samples): every normal of NORMALS
+    at every offset of OFFSETS."""
+    return [oblique_slice(volume, n, wrap=wrap, nearest=True, offset=off)
+            for n in NORMALS for off in OFFSETS]
+
+
 def profile_meter(exemplar: np.ndarray, volume: np.ndarray, wrap: bool = False) -> dict | None:
     """{"exemplar": figures, "axes": figures, "diagonal": figures, "errors": {...},
     "worst": float} or None when the exemplar shows no particles."""
@@ -36,9 +43,7 @@ def profile_meter(exemplar: np.ndarray, volume: np.ndarray, wrap: bool = False) 
     want = reader.profiles(exemplar, wrap)
     axes = pooled([reader.profiles(np.ascontiguousarray(s), False)
                    for _, _, s in axis_slices(volume, SLICES)])
-    diagonal = pooled([reader.profiles(oblique_slice(volume, n, wrap=wrap, nearest=True,
-                                                     offset=off), False)
-                       for n in NORMALS for off in OFFSETS])
+    diagonal = pooled([reader.profiles(cut, False) for cut in diagonal_cuts(volume, wrap)])
     errors = {"axes": relative_errors(axes, want), "diagonal": relative_errors(diagonal, want)}
     worst = max(v for e in errors.values() for v in e.values())
     return {"exemplar": want.figures(), "axes": axes.figures(), "diagonal": diagonal.figures(),
