@@ -46,6 +46,8 @@ class Options:
     @classmethod
     def from_solid(cls, opts: SolidOptions) -> Options:
         iterations, knn = quality_scaled(opts.quality, opts.kopf_iterations, opts.knn)
+        fallback = method_osmap.Options.from_solid(opts)
+        sharpening = replace(fallback.optimisation.sharpening, passes=opts.fill_sharpen)
         return cls(
             structure=opts.structure, phases=opts.phases,
             fill=Fill(
@@ -53,13 +55,14 @@ class Options:
                 optimisation=Optimisation(
                     stride=opts.kopf_stride, iterations=iterations, r=opts.kopf_r,
                     colour_histogram=opts.kopf_histogram,
-                    position_histogram=opts.kopf_histogram, upsample_render=True),
+                    position_histogram=opts.kopf_histogram, upsample_render=True,
+                    sharpening=sharpening),
                 layout=Layout(steps_per_node=opts.som_steps_per_node,
                               sigma_max=opts.som_sigma_max, anisotropy=opts.som_anisotropy),
                 clip=opts.guide_clip, guide_weight=opts.guide_weight,
                 phase_match=opts.phase_match),
             final_histogram=opts.final_histogram,
-            fallback=method_osmap.Options.from_solid(opts))
+            fallback=fallback)
 
 
 def _fill_labels(found, wrap: bool) -> list:

@@ -99,6 +99,11 @@ class SolidOptions(Options):
     phase_match: float = option(1.0, 0.0, 1.0, "method structure: how far each phase's colours "
                                 "(and each particle's mean colour) move to the exemplar's",
                                 tunable=True)
+    fill_sharpen: int = option(0, 0, 20, "method structure: the last `fill_sharpen` "
+                               "iterations of a level give each voxel the densest colour "
+                               "cluster of its proposals, as method osmap's sharpen (its "
+                               "sharpen_* settings apply; 0: the fill only averages)",
+                               tunable=True)
     # --- methods osmap and kopf (texture optimisation, osmap_cli/solid/optimise.py) ---
     kopf_window: int = option(8, 4, 16, "window side n of the slice neighbourhoods (n x n)",
     tunable=True)
