@@ -430,6 +430,44 @@ def test_kopf_search_finds_the_exemplar_window_it_was_cut_from():
     assert (dist[:, :, 1::2, 1::2] == -1.0).all()  # not a window centre of any axis: untouched
 
 
+def test_sharpening_keeps_the_label_constraint():
+    """The fill's sharpening (the densest colour cluster of a voxel's proposals) weighs
+    proposals from exemplar pixels of another label than the voxel's `mismatch` times as much,
+    as the averaging does: where one covering window offers the voxel's own label (a dark gap
+    column), the voxel takes it, though most proposals are the stone colour around it. The
+    gap column reaches the voxels of one parity of x or of y (3/4 of them); without labels (or
+    with mismatch 1) only those whose proposals are half gap (1/4) take it."""
+    from osmap_kernels.kopf import KopfAverage, kopf_cluster, kopf_cluster_labelled
+
+    side, n = 8, 4
+    image = np.ones((1, 16, 16, 3), np.float32)
+    image[:, :, 8] = 0.0  # the gap column, label 0; the rest is stone, label 1
+    ex_labels = (image[..., 0] > 0.5).astype(np.int32)
+    pos = np.zeros((3, side, side, side, 2), np.int32)
+    pos[..., 0], pos[..., 1] = 8, 10  # every window: columns 8 to 11
+    weight = np.ones((3, side, side, side), np.float32)
+    average = KopfAverage(size=n, stride=2, wrap=True, window=np.ones((n, n)))
+    args = (pos, weight, image, np.zeros(3, np.int64), np.ones((1, 16, 16), np.float32),
+            average, 0.25, 0, False)
+
+    def run(mismatch=None):
+        out = np.empty((side, side, side, 3), np.float32)
+        source = np.empty((side, side, side, 3), np.int32)
+        if mismatch is None:
+            kopf_cluster(*args, out, source)
+        else:
+            kopf_cluster_labelled(*args, ex_labels, np.zeros((side,) * 3, np.int32), mismatch,
+                                  out, source)
+        return out
+
+    plain, labelled = run(), run(0.01)
+    assert np.array_equal(run(1.0), plain)  # mismatch 1: the labels are not read
+    assert set(np.unique(plain)) == set(np.unique(labelled)) == {0.0, 1.0}
+    plain_gap, gap = plain[..., 0] == 0.0, labelled[..., 0] == 0.0
+    assert plain_gap.mean() == 0.25 and gap.mean() == 0.75, (plain_gap.mean(), gap.mean())
+    assert gap[plain_gap].all()
+
+
 def test_method_option_selects_the_pipeline(run_cli, exemplar, tmp_path):
     outs = {}
     for method in ("structure", "osmap", "kopf", "legacy"):
