@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import re
 import subprocess
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -492,8 +493,9 @@ def test_method_option_selects_the_pipeline(run_cli, exemplar, tmp_path):
 
 
 def test_quality_is_read_by_every_method(exemplar):
-    """--quality tunes what each method runs: osmap and kopf one optimisation iteration per
-    level when fast (one progress step each) and one more when high; legacy its own search."""
+    """--quality tunes what each method runs: osmap, kopf and structure's fill one optimisation
+    iteration per level when fast (one progress step each) and one more when high; legacy its
+    own search."""
     from osmap_cli.solid import METHODS
 
     def record(method, quality):
@@ -505,6 +507,16 @@ def test_quality_is_read_by_every_method(exemplar):
         assert (fast.optimisation.iterations, default.optimisation.iterations,
                 high.optimisation.iterations) == (1, base.kopf_iterations, base.kopf_iterations + 1)
         assert (fast.knn, default.knn, high.knn) == (1, base.knn, base.knn + 2)
+    fast, default, high = (record("structure", q).fill for q in ("fast", "default", "high"))
+    assert (fast.optimisation.iterations, default.optimisation.iterations,
+            high.optimisation.iterations) == (1, base.kopf_iterations, base.kopf_iterations + 1)
+    assert (fast.knn, default.knn, high.knn) == (1, base.knn, base.knn + 2)
+    # the fill sharpens as method osmap does, with its histogram weights
+    osmap = record("osmap", "default").optimisation
+    assert default.optimisation.sharpening == replace(osmap.sharpening, passes=base.fill_sharpen)
+    assert base.fill_sharpen > 0
+    assert (default.optimisation.colour_histogram, default.optimisation.position_histogram) == (
+        osmap.colour_histogram, osmap.position_histogram)
     fast, high = record("legacy", "fast"), record("legacy", "high")
     assert (fast.iterations, fast.coarse_iterations, fast.random_candidates) == (
         1, base.coarse_iterations // 2, 1)
