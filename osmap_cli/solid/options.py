@@ -131,12 +131,14 @@ class SolidOptions(Options):
     sharpen: int = option(3, 0, 20, "method osmap: the last `sharpen` iterations of every level "
                          "give each voxel one exemplar colour (the best-agreeing window's)",
                          tunable=True)
-    sharpen_levels: int = option(8, 0, 8, "method osmap: sharpen at the finest this many levels "
-                                "(the coarser ones average, as in Kopf et al.)", tunable=True)
+    sharpen_levels: int = option(8, 0, 8, "methods osmap and structure: sharpen at the finest "
+                                "this many levels (the coarser ones average, as in Kopf et al.)",
+                                tunable=True)
     sharpen_cross: int = option(1, 0, 1, "1: a proposal's density counts only the other two "
                                "slice families' proposals (against 1-voxel stripes)", tunable=True)
-    sharpen_finest: int = option(0, 0, 1, "0: the finest level only averages (faster; the "
-                                "sharpened coarser levels set the structure)", tunable=True)
+    sharpen_finest: int = option(0, 0, 1, "methods osmap and structure: 0: the finest level "
+                                "only averages (faster; the sharpened coarser levels set the "
+                                "structure)", tunable=True)
     sharpen_final: int = option(0, 0, 1, "1: the finest level's last iteration is sharpened "
                                "too; 0: the volume is its average (soft antialiased boundaries "
                                "instead of pixel staircases)", tunable=True)
