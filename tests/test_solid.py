@@ -469,6 +469,55 @@ def test_sharpening_keeps_the_label_constraint():
     assert gap[plain_gap].all()
 
 
+def test_structure_fill_keeps_the_exemplar_contrast_and_the_labels():
+    """Method structure's fill with method osmap's histogram weights (3, 9) keeps more of the
+    exemplar's local contrast than with the weak weights of 1 it had (mean in-plane step of the
+    middle slices over the exemplar's: measured 0.68 against 0.60 on dark disks in a noisy
+    ground, 24^3, one level, quality fast and an untrained layout: about a second), and every
+    voxel still takes the colour class of its label (dark inside the built spheres, light
+    outside)."""
+    from osmap_cli.solid import method_structure
+    from osmap_cli.solid.core import SolidTask
+    from osmap_cli.solid.pipeline import plan_levels
+    from osmap_cli.solid.structure.fill import fill
+    from osmap_cli.texture.pyramid import build_pyramid
+
+    rng = np.random.default_rng(0)
+    h, side = 48, 24
+    yy, xx = np.mgrid[0:h, 0:h]
+    ex_labels = np.zeros((h, h), np.int64)
+    for _ in range(14):
+        cy, cx, r = *rng.integers(0, h, 2), rng.uniform(3, 6)
+        ex_labels[(yy - cy) ** 2 + (xx - cx) ** 2 < r * r] = 1
+    image = np.where(ex_labels[..., None] == 1, [0.2, 0.25, 0.2], [0.7, 0.7, 0.65])
+    image = (image + rng.normal(0, 0.08, image.shape)).astype(np.float32)
+    zz, vy, vx = np.mgrid[0:side, 0:side, 0:side]
+    labels = np.zeros((side,) * 3, np.int64)
+    for _ in range(20):
+        (cz, cy, cx), r = rng.integers(0, side, 3), rng.uniform(3, 5)
+        labels[(zz - cz) ** 2 + (vy - cy) ** 2 + (vx - cx) ** 2 < r * r] = 1
+    means = np.array([image[ex_labels == k].mean(0) for k in (0, 1)], np.float32)
+    shapes = plan_levels([(h, h)], (side,) * 3, 4)
+    task = SolidTask(images=[image], ex_of_axis=np.zeros(3, np.int64),
+                     pyramids=[build_pyramid(image, len(shapes))], shapes=shapes,
+                     tileable=False, seed=1)
+
+    def step(a):
+        return float(np.mean([np.abs(np.diff(a, axis=k)).mean() for k in (0, 1)]))
+
+    def contrast(**changes):
+        opts = SolidOptions(width=side, height=side, depth=side, seed=1, quality="fast",
+                            som_steps_per_node=0.0).replace(**changes)
+        params = method_structure.Options.from_solid(opts).fill
+        voxels, _ = fill(task, [ex_labels], [means[ex_labels]], labels, means[labels], params)
+        assert ((voxels.mean(-1) < 0.45) == (labels == 1)).mean() > 0.97
+        c = side // 2
+        return np.mean([step(voxels[c]), step(voxels[:, c]), step(voxels[:, :, c])]) / step(image)
+
+    default, weak = contrast(), contrast(histogram_weight=1.0, position_weight=1.0)
+    assert default > 0.65 and default > 1.08 * weak, (default, weak)
+
+
 def test_method_option_selects_the_pipeline(run_cli, exemplar, tmp_path):
     outs = {}
     for method in ("structure", "osmap", "kopf", "legacy"):
