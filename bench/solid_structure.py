@@ -12,7 +12,8 @@ Names are development exemplars (../shared/exemplars/small), shipped samples as 
 (resized to the side like the others) or `wood_set` (samples/wood_end, _side, _top as
 --x/--y/--z, at their 128 px). Prints two Markdown tables, each once: one row per volume, then
 one row per method against the acceptance bars (BARS); --markdown writes the same to a file.
---set changes a solid option of method structure, --fill a field of its fill (Fill).
+--set changes a solid option of method structure, --fill a field of its fill (Fill; or of
+its Optimisation record as optimisation.FIELD).
 Needs the meters' venv (TEXMETRICS_PYTHON, as bench/solid_meters.py).
 """
 
@@ -64,9 +65,16 @@ def fill_changed(changes):
         return
     original = method_structure.Options.from_solid.__func__
 
+    own = {k: v for k, v in changes.items() if not k.startswith("optimisation.")}
+    nested = {k.split(".", 1)[1]: v for k, v in changes.items() if k.startswith("optimisation.")}
+
     def changed(cls, opts):
         options = original(cls, opts)
-        return dataclasses.replace(options, fill=dataclasses.replace(options.fill, **changes))
+        fill = dataclasses.replace(options.fill, **own)
+        if nested:
+            fill = dataclasses.replace(fill, optimisation=dataclasses.replace(
+                fill.optimisation, **nested))
+        return dataclasses.replace(options, fill=fill)
 
     method_structure.Options.from_solid = classmethod(changed)
     try:
@@ -268,7 +276,8 @@ def main(argv=None) -> int:
                     help="a solid tunable changed for method structure (e.g. "
                     "som_steps_per_node=0: no OS-Map training)")
     ap.add_argument("--fill", action="append", default=[], metavar="KEY=VALUE",
-                    help="a field of method structure's fill changed (e.g. label_mismatch=0.1)")
+                    help="a field of method structure's fill changed (e.g. label_mismatch=0.1; "
+                    "optimisation.position_histogram=9: a field of its Optimisation)")
     args = ap.parse_args(argv)
     from osmap_cli.options import option_spec
     from osmap_cli.solid import SolidOptions

@@ -360,9 +360,17 @@ def position_counts(pos, stride, size, ex_of_axis, n_ex, h, w):
     return counts
 
 
-@njit(cache=True, parallel=True)
 def kopf_cluster(pos, centre_weight, images, ex_of_axis, pixel_weight, p, bandwidth2, steps,
                  cross, out, source):
+    """Sharpening by the densest cluster of the proposals (kopf_cluster_labelled without
+    labels)."""
+    kopf_cluster_labelled(pos, centre_weight, images, ex_of_axis, pixel_weight, p, bandwidth2,
+                          steps, cross, _NO_LABELS, _NO_LABELS, 1.0, out, source)
+
+
+@njit(cache=True, parallel=True)
+def kopf_cluster_labelled(pos, centre_weight, images, ex_of_axis, pixel_weight, p, bandwidth2,
+                          steps, cross, ex_labels, vol_labels, mismatch, out, source):
     """Sharpening (mean shift instead of the mean): of the colours that the covering windows of
     all three axes place on a voxel (weights as in kopf_average), the one of highest weighted
     density (Epanechnikov kernel, squared radius bandwidth2) wins, and the voxel is the weighted
@@ -372,13 +380,17 @@ def kopf_cluster(pos, centre_weight, images, ex_of_axis, pixel_weight, p, bandwi
     areas sharpen, boundaries keep some of their antialiasing (no pixel staircases).
     cross: the density of a proposal counts only the proposals of the other two slice families
     (a colour only one family's windows propose, e.g. one slice's copy showing as a 1-voxel
-    stripe across the other families' slices, cannot win)."""
+    stripe across the other families' slices, cannot win).
+    ex_labels / vol_labels / mismatch: the structure's constraint, as in kopf_average_labelled
+    (a proposal from an exemplar pixel of another label than the voxel's weighs `mismatch`
+    times as much, in the density and in the cluster's mean alike; 1: labels not read)."""
     nz, ny, nx = out.shape[0], out.shape[1], out.shape[2]
     shape = (nz, ny, nx)
     n = p.size
     nc = out.shape[3]
     s = p.stride
     most = 3 * (n // s + 1) * (n // s + 1)
+    labelled = mismatch < 1.0
     for z in prange(nz):
         col = np.empty((most, nc), np.float64)
         wts = np.empty(most, np.float64)
@@ -388,12 +400,15 @@ def kopf_cluster(pos, centre_weight, images, ex_of_axis, pixel_weight, p, bandwi
         cand = np.empty((most, 8), np.int64)
         for y in range(ny):
             for x in range(nx):
+                own = vol_labels[z, y, x] if labelled else 0
                 m = _covering(z, y, x, pos, shape, n, s, p.wrap, cand)
                 for j in range(m):
                     a, er, ec = cand[j, 0], cand[j, 1], cand[j, 2]
                     e = ex_of_axis[a]
                     wts[j] = (centre_weight[a, cand[j, 5], cand[j, 6], cand[j, 7]]
                               * p.window[cand[j, 3], cand[j, 4]] * pixel_weight[e, er, ec])
+                    if labelled and ex_labels[e, er, ec] != own:
+                        wts[j] *= mismatch
                     for ch in range(nc):
                         col[j, ch] = images[e, er, ec, ch]
                     ids[j, 0] = a

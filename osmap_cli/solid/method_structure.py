@@ -7,9 +7,11 @@ regions) or none of these. The structure found is built in 3D at the exemplar's 
 cylindrical field, veins as the bands of a warped turbulent field, phase fields as a truncated
 Gaussian field), then the Kopf et al. optimisation fills in the appearance with the
 structure as guide channels of every slice window, starting from the OS-Map's layout of the
-coarsest volume; finally each phase's colours, and each particle's mean colour, are matched to
-the exemplar's, and the whole volume's colours moved `final_histogram` of the way to the
-exemplar's distribution. An exemplar with none of these structures is made by method osmap.
+coarsest volume, with method osmap's colour and exemplar-position histogram weights and its
+sharpening passes at the coarser levels (`fill_sharpen`); finally each phase's colours, and
+each particle's mean colour, are matched to the exemplar's, and the whole volume's colours
+moved `final_histogram` of the way to the exemplar's distribution. An exemplar with none of
+these structures is made by method osmap.
 """
 
 from __future__ import annotations
@@ -46,20 +48,23 @@ class Options:
     @classmethod
     def from_solid(cls, opts: SolidOptions) -> Options:
         iterations, knn = quality_scaled(opts.quality, opts.kopf_iterations, opts.knn)
+        fallback = method_osmap.Options.from_solid(opts)
+        sharpening = replace(fallback.optimisation.sharpening, passes=opts.fill_sharpen)
         return cls(
             structure=opts.structure, phases=opts.phases,
             fill=Fill(
                 window=opts.kopf_window, dims=opts.kopf_dims, knn=knn,
                 optimisation=Optimisation(
                     stride=opts.kopf_stride, iterations=iterations, r=opts.kopf_r,
-                    colour_histogram=opts.kopf_histogram,
-                    position_histogram=opts.kopf_histogram, upsample_render=True),
+                    colour_histogram=opts.histogram_weight,
+                    position_histogram=opts.position_weight, upsample_render=True,
+                    sharpening=sharpening),
                 layout=Layout(steps_per_node=opts.som_steps_per_node,
                               sigma_max=opts.som_sigma_max, anisotropy=opts.som_anisotropy),
                 clip=opts.guide_clip, guide_weight=opts.guide_weight,
                 phase_match=opts.phase_match),
             final_histogram=opts.final_histogram,
-            fallback=method_osmap.Options.from_solid(opts))
+            fallback=fallback)
 
 
 def _fill_labels(found, wrap: bool) -> list:

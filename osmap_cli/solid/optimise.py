@@ -28,6 +28,7 @@ from osmap_kernels.kopf import (
     kopf_average,
     kopf_average_labelled,
     kopf_cluster,
+    kopf_cluster_labelled,
     kopf_pick,
     kopf_search,
     position_counts,
@@ -134,8 +135,9 @@ def optimise(task: SolidTask, levels: list[SolidLevel], start: np.ndarray,
     are averaged, the colours only). `initial`: the coarsest volume's colours for the first
     search (default: the average of the start positions' windows). `labels`: per level (finest
     first), None or (volume int32 (Z, Y, X), exemplars int32 (E, H, W), mismatch): the
-    averaging weighs proposals from exemplar pixels of another label `mismatch` times as much
-    (kernels' kopf_average_labelled)."""
+    averaging and the sharpening weigh proposals from exemplar pixels of another label
+    `mismatch` times as much (kernels' kopf_average_labelled, kopf_cluster_labelled; the
+    pick of bandwidth 0 reads no labels)."""
     ex_of_axis = task.ex_of_axis
     total = float(len(levels) * opt.iterations)
     done = 0.0
@@ -198,7 +200,12 @@ def optimise(task: SolidTask, levels: list[SolidLevel], start: np.ndarray,
             if _sharpens(opt, index, it):
                 sharp = np.empty_like(vol)
                 s = opt.sharpening
-                if s.bandwidth > 0:
+                if s.bandwidth > 0 and constraint is not None:
+                    kopf_cluster_labelled(pos, cw, imgs, ex_of_axis, weights, average,
+                                          s.bandwidth * level.variance, s.steps, s.cross,
+                                          constraint[1], constraint[0], constraint[2], sharp,
+                                          source)
+                elif s.bandwidth > 0:
                     kopf_cluster(pos, cw, imgs, ex_of_axis, weights, average,
                                  s.bandwidth * level.variance, s.steps, s.cross, sharp, source)
                 else:

@@ -83,7 +83,7 @@ class SolidOptions(Options):
                                    tunable=True)
 
     # --- method structure (osmap_cli/solid/method_structure.py; its fill also reads the
-    #     kopf_* window settings, knn and kopf_histogram below) ---
+    #     kopf_* window settings, knn, histogram_weight, position_weight and sharpen_* below) ---
     structure: str = option("auto", help="method structure: the 3D structure built: auto (what "
                             "the analysis finds), particles, layers, veins (swirled bands and "
                             "veins as continuous sheets), field (mottled phase regions), or "
@@ -99,6 +99,11 @@ class SolidOptions(Options):
     phase_match: float = option(1.0, 0.0, 1.0, "method structure: how far each phase's colours "
                                 "(and each particle's mean colour) move to the exemplar's",
                                 tunable=True)
+    fill_sharpen: int = option(3, 0, 20, "method structure: the last `fill_sharpen` "
+                               "iterations of a level give each voxel the densest colour "
+                               "cluster of its proposals of its own label, as method osmap's "
+                               "sharpen (its sharpen_* settings apply; 0: the fill only "
+                               "averages)", tunable=True)
     # --- methods osmap and kopf (texture optimisation, osmap_cli/solid/optimise.py) ---
     kopf_window: int = option(8, 4, 16, "window side n of the slice neighbourhoods (n x n)",
     tunable=True)
@@ -116,22 +121,24 @@ class SolidOptions(Options):
     kopf_histogram: float = option(1.0, 0.0, 10.0, "method kopf: strength of the colour and "
                                   "exemplar-position histogram weights (0: plain IRLS)",
                                   tunable=True)
-    histogram_weight: float = option(3.0, 0.0, 10.0, "method osmap: strength of the colour "
-                                    "histogram weight (stronger than kopf's: the sharpening "
-                                    "favours the majority colour)", tunable=True)
-    position_weight: float = option(9.0, 0.0, 30.0, "method osmap: strength of the "
-                                   "exemplar-position histogram weight (higher: more of the "
-                                   "exemplar used, truer colours and feature sizes, more 1-voxel "
-                                   "stripes)", tunable=True)
+    histogram_weight: float = option(3.0, 0.0, 10.0, "methods osmap and structure: strength "
+                                    "of the colour histogram weight (stronger than kopf's: the "
+                                    "sharpening favours the majority colour)", tunable=True)
+    position_weight: float = option(9.0, 0.0, 30.0, "methods osmap and structure: strength "
+                                   "of the exemplar-position histogram weight (higher: more of "
+                                   "the exemplar used, truer colours and feature sizes, more "
+                                   "1-voxel stripes)", tunable=True)
     sharpen: int = option(3, 0, 20, "method osmap: the last `sharpen` iterations of every level "
                          "give each voxel one exemplar colour (the best-agreeing window's)",
                          tunable=True)
-    sharpen_levels: int = option(8, 0, 8, "method osmap: sharpen at the finest this many levels "
-                                "(the coarser ones average, as in Kopf et al.)", tunable=True)
+    sharpen_levels: int = option(8, 0, 8, "methods osmap and structure: sharpen at the finest "
+                                "this many levels (the coarser ones average, as in Kopf et al.)",
+                                tunable=True)
     sharpen_cross: int = option(1, 0, 1, "1: a proposal's density counts only the other two "
                                "slice families' proposals (against 1-voxel stripes)", tunable=True)
-    sharpen_finest: int = option(0, 0, 1, "0: the finest level only averages (faster; the "
-                                "sharpened coarser levels set the structure)", tunable=True)
+    sharpen_finest: int = option(0, 0, 1, "methods osmap and structure: 0: the finest level "
+                                "only averages (faster; the sharpened coarser levels set the "
+                                "structure)", tunable=True)
     sharpen_final: int = option(0, 0, 1, "1: the finest level's last iteration is sharpened "
                                "too; 0: the volume is its average (soft antialiased boundaries "
                                "instead of pixel staircases)", tunable=True)

@@ -34,7 +34,9 @@ class Fill:
     the OS-Map's (its training steps 0: a random start); clip: the distance guide saturates
     this many pixels from a boundary; guide_weight: the guide channels against the colours;
     phase_match: how far each phase's colours (and each particle's mean) move to the
-    exemplar's."""
+    exemplar's; label_mismatch: the label constraint's weight (1: none); identity_start: the
+    coarsest level's first search starts from the structure's identity colours (else from
+    the average of the OS-Map layout's windows, as method osmap)."""
 
     window: int
     dims: int
@@ -45,6 +47,7 @@ class Fill:
     guide_weight: float = 1.0
     phase_match: float = 1.0
     label_mismatch: float = 0.01
+    identity_start: bool = True
 
 
 def distance_guide(labels: np.ndarray, axes, wrap: bool, clip: float) -> np.ndarray:
@@ -154,7 +157,8 @@ def fill(task: SolidTask, ex_labels, ex_identity, labels, identity, params: Fill
     guides = volume_guides(task, labels, identity, params.clip, scale)
     start = organise(levels[-1], task.ex_of_axis, params.layout, tileable=task.tileable,
                      seed=task.seed)
-    coarse = identity_colours(block_mean(identity, task.shapes[-1]), ex_identity, images)
+    coarse = (identity_colours(block_mean(identity, task.shapes[-1]), ex_identity, images)
+              if params.identity_start else None)
     constraint = label_constraint(task, ex_labels, labels, params.label_mismatch)
     return optimise(task, levels, start, params.optimisation, progress, guides, coarse,
                     constraint)
