@@ -304,12 +304,15 @@ def test_the_plans_solid_run_calls_the_structure_fills_kernels(run_cli, monkeypa
     # the kernels of method structure's fill that only a fill over several levels, guided by
     # a structure's labels, calls: a plan that misses them compiles them on a user's first run
     called = set()
-    for name in ("fill_positions", "kopf_average_labelled", "kopf_cluster_labelled"):
-        def spy(*args, _kernel=getattr(optimise, name), _name=name):
-            called.add(_name)
-            return _kernel(*args)
 
-        monkeypatch.setattr(optimise, name, spy)
+    def spy(name, kernel):
+        def call(*args):
+            called.add(name)
+            return kernel(*args)
+        return call
+
+    for name in ("fill_positions", "kopf_average_labelled", "kopf_cluster_labelled"):
+        monkeypatch.setattr(optimise, name, spy(name, getattr(optimise, name)))
     fields = dict(write_inputs(str(tmp_path)), out=str(tmp_path))
     done = run_cli(*(arg.format(**fields) for arg in PLAN["solid"]))
     assert done.code == 0, done.err
