@@ -105,23 +105,11 @@ def _wall_cpu(argv, env, cwd) -> tuple[float, float]:
 
 
 def _first_run(argv, env, cwd) -> tuple[float, float, int]:
-    """(wall s, CPU s, kernel signatures compiled): a run with Numba's cache log on, whose
-    "data saved" lines are the compiles (a kernel loaded from a cache saves nothing)."""
-    import resource
-    import time
-
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    started = time.perf_counter()
-    done = subprocess.run(argv, env=dict(env, NUMBA_DEBUG_CACHE="1"), cwd=cwd,
-                          capture_output=True, text=True)
-    wall = time.perf_counter() - started
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    if done.returncode != 0:
-        raise RuntimeError(f"command failed ({done.returncode}): {' '.join(argv)}\n"
-                           f"{done.stderr.strip()[-2000:]}")
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    compiled = (done.stdout + done.stderr).count("data saved to")
-    return wall, cpu, compiled
+    """(wall s, CPU s, kernel signatures compiled): a run with Numba's cache log on (stdout),
+    whose "data saved" lines are the compiles (a kernel loaded from a cache saves nothing)."""
+    output = []
+    wall, cpu = timed_run(argv, env=dict(env, NUMBA_DEBUG_CACHE="1"), cwd=cwd, output=output)
+    return wall, cpu, output[0].count("data saved to")
 
 
 def _after_install(log) -> list[str]:
