@@ -13,9 +13,10 @@ every compile happens in the calling thread, whose CPU time is then the compile'
 - a warm process: seconds to import numba, and to load each kernel from the cache;
 - after install (skipped with --quick): this checkout installed with `pip install` into a new
   virtual environment (timed), then, NUMBA_CACHE_DIR unset and no warmup, the first `osmap
-  synth` at 256x256 and the first `osmap solid` at 128^3 (each a fresh process, wall and CPU;
-  they run on the portable kernels), the background compile for this CPU that the first one
-  starts (until its marker appears), the same two commands again (this CPU's kernels), and
+  synth` at 256x256, the first `osmap solid` at 128^3 and the first `osmap carve` (a 64^3
+  volume) (each a fresh process: wall, CPU and the kernels it compiled; they run on the
+  portable kernels), the background compile for this CPU that the first one
+  starts (until its marker appears), the same commands again (this CPU's kernels), and
   paired steady-state runs: this CPU's kernels from the background compile against kernels
   compiled on first use (OSMAP_KERNELS=host, a separate cache: the ordinary way), and the
   portable kernels (forced with NUMBA_CPU_NAME=generic) against this CPU's.
@@ -103,6 +104,14 @@ def _wall_cpu(argv, env, cwd) -> tuple[float, float]:
     return timed_run(argv, env=env, cwd=cwd)
 
 
+def _first_run(argv, env, cwd) -> tuple[float, float, int]:
+    """(wall s, CPU s, kernel signatures compiled): a run with Numba's cache log on (stdout),
+    whose "data saved" lines are the compiles (a kernel loaded from a cache saves nothing)."""
+    output = []
+    wall, cpu = timed_run(argv, env=dict(env, NUMBA_DEBUG_CACHE="1"), cwd=cwd, output=output)
+    return wall, cpu, output[0].count("data saved to")
+
+
 def _after_install(log) -> list[str]:
     """The section's "after install" paragraph and tables (see the module docstring)."""
     import os
@@ -131,8 +140,11 @@ def _after_install(log) -> list[str]:
                  "--quiet"]
         solid = [osmap, "solid", str(SAMPLES_DIR / "cells.png"), "-o", "v.npy", "--size", "128",
                  "--quiet"]
+        carve = [osmap, "carve", str(SAMPLES_DIR / "vase.obj"), "--exemplar",
+                 str(SAMPLES_DIR / "cells.png"), "-o", "c.glb", "--size", "64", "--quiet"]
+        commands = {"synth": synth, "solid": solid, "carve": carve}
         log("[compile] first runs")
-        first = {"synth": _wall_cpu(synth, env, work), "solid": _wall_cpu(solid, env, work)}
+        first = {name: _first_run(argv, env, work) for name, argv in commands.items()}
         started = time.perf_counter()
         marker = None
         while marker is None and time.perf_counter() - started < 1800:
@@ -140,7 +152,7 @@ def _after_install(log) -> list[str]:
             time.sleep(1.0)
         background = time.perf_counter() - started
         log(f"[compile] background compile done after {background:.0f} s more")
-        again = {"synth": _wall_cpu(synth, env, work), "solid": _wall_cpu(solid, env, work)}
+        again = {name: _first_run(argv, env, work) for name, argv in commands.items()}
         # steady state, paired: host (background) / host (first use), portable / host
         ordinary = dict(env, OSMAP_KERNELS="host", NUMBA_CACHE_DIR=str(root / "first-use"))
         _wall_cpu(synth, ordinary, work)  # compiles the ordinary way
@@ -152,18 +164,21 @@ def _after_install(log) -> list[str]:
             ratios["portable"].append(_wall_cpu(synth, portable, work)[1] / ours[1])
     finally:
         shutil.rmtree(root, ignore_errors=True)
-    rows = [["`osmap synth cells.png --size 256`", fmt(first["synth"][0], 1),
-             fmt(first["synth"][1], 1), fmt(again["synth"][0], 1), fmt(again["synth"][1], 1)],
-            ["`osmap solid cells.png --size 128`", fmt(first["solid"][0], 1),
-             fmt(first["solid"][1], 1), fmt(again["solid"][0], 1), fmt(again["solid"][1], 1)]]
+    shown = {"synth": "`osmap synth cells.png --size 256`",
+             "solid": "`osmap solid cells.png --size 128`",
+             "carve": "`osmap carve vase.obj --exemplar cells.png --size 64`"}
+    rows = [[shown[name], fmt(first[name][0], 1), fmt(first[name][1], 1), first[name][2],
+             fmt(again[name][0], 1), fmt(again[name][1], 1), again[name][2]] for name in shown]
     return [
         f"After install: `pip install .` of this checkout into a new virtual environment took "
         f"{install:.0f} s (the build compiles the portable kernels). Then, with NUMBA_CACHE_DIR "
         "unset and no `osmap warmup`, each command's first run (portable kernels) and a run "
         f"after the background compile for this CPU had finished ({background:.0f} s after the "
         "first run), each a fresh process:", "",
-        md_table(["command", "first run wall s", "first run CPU s", "later run wall s",
-                  "later run CPU s"], rows),
+        md_table(["command", "first run wall s", "first run CPU s", "first run compiles",
+                  "later run wall s", "later run CPU s", "later run compiles"], rows),
+        "*compiles*: kernel signatures the run compiled (Numba's cache log; 0: every kernel "
+        "came from a cache).", "",
         "Steady state, CPU-second ratios of paired runs (medians of 5 pairs, `osmap synth` "
         "256x256): this CPU's kernels from the background compile / kernels compiled on first "
         f"use the ordinary way {fmt(statistics.median(ratios['host']), 3)}; the portable "

@@ -198,21 +198,25 @@ def osmap_cli() -> Path | None:
 
 # ----------------------------------------------------------------------------- timing
 
-def timed_run(cmd: Sequence[str], env: dict | None = None, cwd: Path | None = None):
+def timed_run(cmd: Sequence[str], env: dict | None = None, cwd: Path | None = None,
+              output: list | None = None):
     """Run `cmd` to completion; returns (wall seconds, user+sys CPU seconds of the child).
+    With OUTPUT, its stdout is appended to that list (else discarded).
 
     Raises RuntimeError with the command's stderr if it fails.
     """
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    proc = subprocess.run(list(cmd), env=env, cwd=cwd, stdout=subprocess.DEVNULL,
-                          stderr=subprocess.PIPE, text=True)
+    proc = subprocess.run(list(cmd), env=env, cwd=cwd, text=True, stderr=subprocess.PIPE,
+                          stdout=subprocess.DEVNULL if output is None else subprocess.PIPE)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode != 0:
         raise RuntimeError(f"command failed ({proc.returncode}): {shlex.join(cmd)}\n"
                            f"{proc.stderr.strip()[-2000:]}")
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    if output is not None:
+        output.append(proc.stdout)
     return wall, cpu
 
 

@@ -17,6 +17,10 @@ __all__ = ["PLAN", "plan_digest", "plan_exemplar", "write_inputs"]
 # guides, inpaint, tileable and apply). "{ex}": a 48x48 RGB exemplar, "{regular}": a 48x48
 # exemplar with a 2D lattice (its run calls the lattice kernels), "{mesh}": a tetrahedron with
 # UVs (OBJ), "{out}": a scratch folder.
+# `osmap solid` at 32^3: the plan's exemplar reads as particles, so the default method builds
+# that structure and fills it over two levels (16^3 is a single level: the fill's upsampling
+# and labelled sharpening would compile on a user's first run); every structure kind, and
+# --tileable, calls the same kernels with the same types.
 # Each command runs with its defaults, so a new default method is covered as it lands; other
 # methods (`osmap solid --method legacy`: 70 CPU s of parallel kernels) compile on first use.
 # A new command with kernels of its own needs one line here.
@@ -24,7 +28,7 @@ PLAN = {
     "synth": ["synth", "{ex}", "{regular}", "--out-dir", "{out}", "--size", "64", "--quiet"],
     "surface": ["surface", "--shape", "torus", "-o", "{out}/grid.obj", "--grid", "6x6",
                 "--points", "400", "--steps", "600", "--quiet"],
-    "solid": ["solid", "{ex}", "-o", "{out}/solid.npy", "--size", "16", "--quiet"],
+    "solid": ["solid", "{ex}", "-o", "{out}/solid.npy", "--size", "32", "--quiet"],
     "carve": ["carve", "{mesh}", "--exemplar", "{ex}", "--size", "16", "-o", "{out}/carved.glb",
               "--texture-size", "64", "--quiet"],
 }

@@ -295,3 +295,25 @@ for _ in range(600):
 print(off, gc.isenabled())
 """
     assert _python(code) == "True True"
+
+
+def test_the_plans_solid_run_calls_the_structure_fills_kernels(run_cli, monkeypatch, tmp_path):
+    from osmap_cli.kernelplan import PLAN, write_inputs
+    from osmap_cli.solid import optimise
+
+    # the kernels of method structure's fill that only a fill over several levels, guided by
+    # a structure's labels, calls: a plan that misses them compiles them on a user's first run
+    called = set()
+
+    def spy(name, kernel):
+        def call(*args):
+            called.add(name)
+            return kernel(*args)
+        return call
+
+    for name in ("fill_positions", "kopf_average_labelled", "kopf_cluster_labelled"):
+        monkeypatch.setattr(optimise, name, spy(name, getattr(optimise, name)))
+    fields = dict(write_inputs(str(tmp_path)), out=str(tmp_path))
+    done = run_cli(*(arg.format(**fields) for arg in PLAN["solid"]))
+    assert done.code == 0, done.err
+    assert called == {"fill_positions", "kopf_average_labelled", "kopf_cluster_labelled"}
