@@ -197,3 +197,13 @@ def test_band_coverage_has_no_staircases_along_the_grid():
     # share is staircases; measured 0.011 from the distance along u, 0.040 with the voxel
     # labels blurred as much (0.5 voxel)
     assert exact < 0.02 and exact < 0.5 * blurred, (exact, blurred)
+
+
+def test_forced_layers_on_patches_follow_the_measured_direction():
+    """--structure layers on an exemplar the analysis does not read as layered builds layers
+    along its dominant direction (instead of failing for want of a layered exemplar)."""
+    image, _ = mottled_patches(64)
+    found = plan([image], np.zeros(3, np.int64), structure="layers", seed=1)
+    assert found.kind == "layers" and found.analyses[0].kind != "layers"
+    labels = build_structure(found, (24, 24, 24), 1, False).labels
+    assert len(np.unique(labels)) >= 2

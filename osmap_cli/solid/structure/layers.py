@@ -327,6 +327,8 @@ def fit_layers(images, labels, analyses, ex_of_axis) -> LayerModel:
 
     lums = [gaussian_blur(lab(im), 0.8)[..., 0] for im in images]
     layered = [an.kind == "layers" for an in analyses]
+    if not any(layered):  # layers asked for (--structure layers): every exemplar's stripe angle
+        layered = [True] * len(analyses)
     single = len(images) == 1
     phases = int(max(lb.max() for lb in labels)) + 1
     # rings: one family's exemplar curves around a centre, the others show straight stripes
