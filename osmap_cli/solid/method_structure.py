@@ -26,7 +26,7 @@ from osmap_cli.solid import method_osmap
 from osmap_cli.solid.core import SolidResult, SolidTask
 from osmap_cli.solid.layout import Layout
 from osmap_cli.solid.optimise import Optimisation, quality_scaled
-from osmap_cli.solid.structure.fill import Fill, fill
+from osmap_cli.solid.structure.fill import Fill, fill, residual_detail
 from osmap_cli.solid.structure.method import build_structure, finish, plan
 from osmap_cli.texture.histogram import match_quantiles
 
@@ -62,7 +62,7 @@ class Options:
                 layout=Layout(steps_per_node=opts.som_steps_per_node,
                               sigma_max=opts.som_sigma_max, anisotropy=opts.som_anisotropy),
                 clip=opts.guide_clip, guide_weight=opts.guide_weight,
-                phase_match=opts.phase_match),
+                phase_match=opts.phase_match, detail=opts.fill_detail),
             final_histogram=opts.final_histogram,
             fallback=fallback)
 
@@ -90,6 +90,8 @@ def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
     voxels, source = fill(task, found.ex_labels, found.ex_identity, built.labels,
                           built.identity, options.fill, progress)
     voxels = finish(voxels, found, built, options.fill.phase_match, task.tileable)
+    voxels = residual_detail(voxels, source, task.exemplars(0), task.ex_of_axis, built.labels,
+                             found.ex_labels, options.fill.detail, task.tileable)
     # the per-phase matching moves the low-pass only; this one gives back the exemplar's
     # extreme colours that the optimisation's averaging loses
     pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])
