@@ -266,7 +266,7 @@ def residual_detail(voxels: np.ndarray, source: np.ndarray, images, ex_of_axis, 
     per phase so that the phase's slice high-pass variance reaches `strength` times the
     exemplar's pixels of that phase (a phase the fill already made as detailed gets none).
     The averaging fill loses exactly this band: its wide regions read uniform, coarser than
-    the exemplar. The copied detail's 2-voxel period is left out (without_nyquist)."""
+    the exemplar."""
     if strength <= 0:
         return voxels
     highs = [np.asarray(im, np.float32) - gaussian_blur(im, DETAIL_SIGMA, wrap).astype(np.float32)
@@ -279,10 +279,10 @@ def residual_detail(voxels: np.ndarray, source: np.ndarray, images, ex_of_axis, 
             rows = np.clip(source[..., 1][sel], 0, high.shape[0] - 1)
             cols = np.clip(source[..., 2][sel], 0, high.shape[1] - 1)
             detail[sel] = high[rows, cols]
-    # the heaviest proposal changes with the window lattice (centres every 2 voxels): its
-    # 2-voxel period would print a grid on wide uniform regions
-    detail = without_nyquist(detail, 3, wrap)
-    own, added = slice_detail(voxels, wrap), slice_detail(detail, wrap)
+    own = np.zeros(voxels.shape[:3])
+    for axes in PLANE_AXES:
+        own += ((voxels - gaussian_blur(voxels, DETAIL_SIGMA, wrap, axes)) ** 2).sum(-1) / 3.0
+    added = (detail.astype(np.float64) ** 2).sum(-1)
     used = sorted(set(int(e) for e in ex_of_axis))
     gain = np.zeros(voxels.shape[:3], np.float32)
     for value in np.unique(labels):
@@ -295,13 +295,3 @@ def residual_detail(voxels: np.ndarray, source: np.ndarray, images, ex_of_axis, 
         if want > 0 and have > 0:
             gain[inside] = np.sqrt(want / have)
     return (voxels + gain[..., None] * detail).astype(np.float32)
-
-
-def slice_detail(values: np.ndarray, wrap: bool) -> np.ndarray:
-    """float64 (Z, Y, X): each voxel's squared high-pass (less the Gaussian blur of
-    DETAIL_SIGMA within the slice), summed over channels, averaged over the three slice
-    families."""
-    out = np.zeros(values.shape[:3])
-    for axes in PLANE_AXES:
-        out += ((values - gaussian_blur(values, DETAIL_SIGMA, wrap, axes)) ** 2).sum(-1) / 3.0
-    return out
