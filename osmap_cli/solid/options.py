@@ -104,6 +104,10 @@ class SolidOptions(Options):
                                "cluster of its proposals of its own label, as method osmap's "
                                "sharpen (its sharpen_* settings apply; 0: the fill only "
                                "averages)", tunable=True)
+    fill_detail: float = option(1.0, 0.0, 2.0, "method structure: the exemplar's residual "
+                                "detail (its high-pass) added to each voxel from its source "
+                                "pixel, each phase up to this share of the exemplar's detail "
+                                "variance in that phase (0: none)", tunable=True)
     # --- methods osmap and kopf (texture optimisation, osmap_cli/solid/optimise.py) ---
     kopf_window: int = option(8, 4, 16, "window side n of the slice neighbourhoods (n x n)",
     tunable=True)
