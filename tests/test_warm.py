@@ -244,6 +244,25 @@ def test_after_a_portable_run_this_cpus_compile_starts_in_the_background(monkeyp
     assert len(started) == 1
 
 
+def _autogroups_settable() -> bool:
+    """Whether a new session may set its autogroup's nice here (Linux with autogroups, /proc
+    writable)."""
+    probe = "open('/proc/self/autogroup', 'w').write('0')"
+    return os.path.exists("/proc/self/autogroup") and subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, start_new_session=True).returncode == 0
+
+
+@pytest.mark.skipif(not _autogroups_settable(), reason="no settable autogroups here")
+def test_the_background_compile_lowers_its_sessions_share_of_the_cpu():
+    """In a session of its own (as the background compile runs), nice 19 alone leaves the
+    session a full share of the CPU beside the user's next run: its autogroup is niced too."""
+    code = ("from osmap_cli.kernelwarm import lowest_priority; lowest_priority(); "
+            "print(open('/proc/self/autogroup').read(), end='')")
+    shown = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                           start_new_session=True, check=True).stdout
+    assert shown.split()[-2:] == ["nice", "19"], shown
+
+
 def test_quick_loads_load_the_same_kernels_without_compiling():
     code = """
 import numpy as np
