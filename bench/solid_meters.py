@@ -18,16 +18,19 @@ SHARED = next((p / "shared" for p in REPO.parents if (p / "shared" / "exemplars"
 EXEMPLARS = SHARED / "exemplars" / "small"
 TEXMETRICS = SHARED / "tools" / "texmetrics.py"
 SOLIDLOOK = SHARED / "tools" / "solidlook.py"
+GRANULES = SHARED / "tools" / "granules.py"
 TEXMETRICS_PY = Path(os.environ.get("TEXMETRICS_PYTHON", "/tmp/texmetrics-venv/bin/python"))
 NAMES = ("terrazzo_granite", "marble_swirl_green", "wood_planks_horizontal",
          "gravel_green_stones")
 
 
 def load_exemplar(name: str, side: int) -> np.ndarray:
+    """A development exemplar, or a shipped sample (`samples/gravel`), at `side` px."""
     from osmap_cli.imageio import read_image
     from osmap_cli.texture.pyramid import resize
 
-    image = read_image(EXEMPLARS / f"{name}.png").pixels
+    path = REPO / f"{name}.png" if name.startswith("samples/") else EXEMPLARS / f"{name}.png"
+    image = read_image(path).pixels
     return image if image.shape[0] == side else resize(image, side, side)
 
 
@@ -45,6 +48,13 @@ def matched_coherence(exemplar_path: Path, volume_path: Path, sigma: float = 1.0
     subprocess.run([str(TEXMETRICS_PY), str(REPO / "bench" / "lowpass.py"), str(exemplar_path),
                     str(volume_path), str(sigma), str(ex_lp), str(vol_lp)], check=True)
     return worst_axis(texmetrics(ex_lp, vol_lp))["coh_mean"]
+
+
+def granules(exemplar_path: Path, volume_path: Path) -> dict:
+    """granules.py's worst-axis reading (bright_shift, dark_shift)."""
+    out = subprocess.run([str(TEXMETRICS_PY), str(GRANULES), str(exemplar_path),
+                          str(volume_path), "--json"], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout)["worst"]
 
 
 def solidlook(exemplar_path: Path, volume_path: Path) -> dict:

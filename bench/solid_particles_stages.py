@@ -18,8 +18,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from solid_meters import load_exemplar, texmetrics, worst_axis
-from solid_structure import _sample, granules
+from solid_meters import granules, load_exemplar, texmetrics, worst_axis
 
 
 def _worst(errors: dict) -> str:
@@ -34,7 +33,7 @@ def stages(name: str, side: int, seed: int, folder: Path) -> list[dict]:
     from osmap_cli.solid.structure.meter import profile_meter
     from osmap_cli.solid.structure.method import build_structure, plan
 
-    exemplar = _sample(name, side) if name.startswith("samples/") else load_exemplar(name, side)
+    exemplar = load_exemplar(name, side)
     ex_path = folder / f"{Path(name).name}_{side}.png"
     write_image(ex_path, exemplar, 8)
     found = plan([exemplar], [0, 0, 0], seed=seed, probe_cap=side)

@@ -22,8 +22,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from solid_meters import load_exemplar, solidlook, texmetrics, worst_axis
-from solid_structure import granules
+from solid_meters import granules, load_exemplar, solidlook, texmetrics, worst_axis
 
 
 def guide(exemplar, side: int, seed: int):

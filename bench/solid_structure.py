@@ -34,8 +34,7 @@ import numpy as np
 from solid_meters import (
     NAMES,
     REPO,
-    SHARED,
-    TEXMETRICS_PY,
+    granules,
     load_exemplar,
     matched_coherence,
     solidlook,
@@ -43,16 +42,7 @@ from solid_meters import (
     worst_axis,
 )
 
-GRANULES = SHARED / "tools" / "granules.py"
 WOOD_SET = ("wood_end", "wood_side", "wood_top")
-
-
-def granules(ex_path: Path, vol_path: Path) -> dict:
-    import subprocess
-
-    out = subprocess.run([str(TEXMETRICS_PY), str(GRANULES), str(ex_path), str(vol_path),
-                          "--json"], capture_output=True, text=True, check=True)
-    return json.loads(out.stdout)["worst"]
 
 
 @contextlib.contextmanager
@@ -113,15 +103,6 @@ def measure(ex_path: Path, vol_path: Path, exemplar, voxels) -> dict:
             "profile_detail": prof}
 
 
-def _sample(name: str, side: int) -> np.ndarray:
-    """A shipped sample (`samples/gravel`) at `side` px, resized like the development ones."""
-    from osmap_cli.imageio import read_image
-    from osmap_cli.texture.pyramid import resize
-
-    image = read_image(REPO / f"{name}.png").pixels
-    return image if image.shape[0] == side else resize(image, side, side)
-
-
 def cut_picture(voxels, exemplar):
     """The preview (cube + middle slices) with an oblique (1, 1, 1) cut and the exemplar
     beside it, enlarged like the slices."""
@@ -159,15 +140,10 @@ def run(names, sides, methods, sheet=None, seed=1, changes=None, log=print, fill
                                  for n in WOOD_SET]
                     ex_side = exemplars[0].shape[0]
                     ex_path = REPO / "samples" / "wood_side.png"
-                elif name.startswith("samples/"):
-                    exemplars = [_sample(name, side)]
-                    ex_side = side
-                    ex_path = folder / f"{Path(name).name}_{side}.png"
-                    write_image(ex_path, exemplars[0], 8)
                 else:
                     exemplars = [load_exemplar(name, side)]
                     ex_side = side
-                    ex_path = folder / f"{name}_{side}.png"
+                    ex_path = folder / f"{Path(name).name}_{side}.png"
                     write_image(ex_path, exemplars[0], 8)
                 for method in methods:
                     voxels, seconds, structure_s, report = synthesize(
