@@ -165,7 +165,8 @@ class SolidOptions(Options):
     # --- polish (method structure: iterations at the finest level once the structure is set,
     #     osmap_cli/solid/optimise.py's Polish) ---
     polish: int = option(0, 0, 8, "method structure: search + average iterations after the "
-                         "fill's finest level, the structure set (0: none)", tunable=True)
+                         "fill's finest level, from its volume (0: none; the front they "
+                         "measure: docs/solid.md)", tunable=True)
     polish_guides: int = option(0, 0, 1, "method structure: 1: the polish's windows keep the "
                                 "structure's guide channels; 0: colours only", tunable=True)
     polish_labels: float = option(1.0, 0.0, 1.0, "method structure: the label constraint's "
