@@ -6,7 +6,8 @@ window centre and axis: the nearest exemplar window in the level's PCA space), t
 (every voxel: the IRLS-weighted mean, exponent r, of the colours the covering windows of all
 three axes place on it, each weight divided by the colour and exemplar-position histogram excess
 of the pixel it proposes). With `Sharpening`, the last passes of a level give each voxel the
-single exemplar colour that the windows agree on (docs/solid.md, "Method").
+single exemplar colour that the windows agree on (docs/solid.md, "Method"). With `Polish`, more
+iterations follow the finest level's, with the guides and the label constraint weakened.
 
 `optimise` reads only its arguments: the levels, the coarsest level's starting positions and an
 `Optimisation` record, so a method can hand it levels built differently (extra channels in the
@@ -15,7 +16,7 @@ windows, say) or start it from its own layout.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -218,11 +219,10 @@ def polish(task: SolidTask, level: SolidLevel, vol, pos, dist, guide, constraint
         constraint = (constraint[0], constraint[1], spec.label_mismatch)
         if spec.label_mismatch >= 1.0:
             constraint = None
-    plain = replace(opt, sharpening=None)
     source = None
-    for it in range(spec.iterations):
+    for it in range(spec.iterations):  # salts apart from the finest level's 0 .. iterations
         params = KopfSearch(exhaustive=False, salt=np.uint64(900 + it), **search)
-        vol, pos, source = _iterate(task, level, vol, pos, dist, guide, constraint, plain,
+        vol, pos, source = _iterate(task, level, vol, pos, dist, guide, constraint, opt,
                                     params, average, False)
     if spec.discrete:
         e = np.asarray(task.ex_of_axis)[source[..., 0]]
