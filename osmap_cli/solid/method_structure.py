@@ -26,7 +26,7 @@ import numpy as np
 from osmap_cli.solid import method_osmap
 from osmap_cli.solid.core import SolidResult, SolidTask
 from osmap_cli.solid.layout import Layout
-from osmap_cli.solid.optimise import Optimisation, quality_scaled
+from osmap_cli.solid.optimise import Optimisation, Polish, quality_scaled
 from osmap_cli.solid.structure.fill import Fill, fill, residual_detail
 from osmap_cli.solid.structure.method import build_structure, finish, plan
 from osmap_cli.texture.histogram import match_quantiles
@@ -61,7 +61,10 @@ class Options:
                     stride=opts.kopf_stride, iterations=iterations, r=opts.kopf_r,
                     colour_histogram=opts.histogram_weight,
                     position_histogram=opts.position_weight, upsample_render=True,
-                    sharpening=sharpening),
+                    sharpening=sharpening,
+                    polish=Polish(iterations=opts.polish, guides=bool(opts.polish_guides),
+                                  label_mismatch=opts.polish_labels,
+                                  discrete=bool(opts.polish_discrete))),
                 layout=Layout(steps_per_node=opts.som_steps_per_node,
                               sigma_max=opts.som_sigma_max, anisotropy=opts.som_anisotropy),
                 clip=opts.guide_clip, guide_weight=opts.guide_weight,

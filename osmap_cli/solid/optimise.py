@@ -6,7 +6,8 @@ window centre and axis: the nearest exemplar window in the level's PCA space), t
 (every voxel: the IRLS-weighted mean, exponent r, of the colours the covering windows of all
 three axes place on it, each weight divided by the colour and exemplar-position histogram excess
 of the pixel it proposes). With `Sharpening`, the last passes of a level give each voxel the
-single exemplar colour that the windows agree on (docs/solid.md, "Method").
+single exemplar colour that the windows agree on (docs/solid.md, "Method"). With `Polish`, more
+iterations follow the finest level's, with the guides and the label constraint weakened.
 
 `optimise` reads only its arguments: the levels, the coarsest level's starting positions and an
 `Optimisation` record, so a method can hand it levels built differently (extra channels in the
@@ -54,6 +55,17 @@ class Sharpening:
 
 
 @dataclass(frozen=True)
+class Polish:
+    """Iterations after the finest level's, from its volume and positions (method structure:
+    the structure is set by then, so the windows may match the exemplar more freely)."""
+
+    iterations: int  # 0: none
+    guides: bool = False  # the windows keep their guide channels (else colours only)
+    label_mismatch: float = 1.0  # the label constraint's weight in the averaging (1: none)
+    discrete: bool = False  # the last iteration copies each voxel's heaviest proposal
+
+
+@dataclass(frozen=True)
 class Optimisation:
     """What the optimisation reads (methods osmap and kopf build it from SolidOptions)."""
 
@@ -66,6 +78,7 @@ class Optimisation:
     upsample_render: bool = False  # a finer level starts from the exemplar colours at the
     #                                upsampled positions (else the coarser volume interpolated)
     sharpening: Sharpening | None = None
+    polish: Polish | None = None  # more iterations at the finest level, the structure set
 
 
 def quality_scaled(quality: str, iterations: int, knn: int) -> tuple[int, int]:
@@ -151,8 +164,6 @@ def optimise(task: SolidTask, levels: list[SolidLevel], start: np.ndarray,
         window = np.exp(-opt.falloff * (off[:, None] ** 2 + off[None, :] ** 2)
                         / max((n / 2.0) ** 2, 1.0))
         average = KopfAverage(size=n, stride=opt.stride, wrap=task.tileable, window=window)
-        eps = EPS * level.basis.shape[0]
-        power = (opt.r - 2.0) / 2.0
         dist = np.ones((3, *vshape), np.float32)
         flat_weights = np.ones(imgs.shape[:3], np.float32)
         coarsest = pos is None
@@ -176,47 +187,89 @@ def optimise(task: SolidTask, levels: list[SolidLevel], start: np.ndarray,
         for it in range(opt.iterations):
             params = KopfSearch(exhaustive=coarsest and it == 0,
                                 salt=np.uint64(index * 1000 + it), **search)
-            new_pos = np.empty_like(pos)
-            guide = guides[index] if guides is not None else np.zeros((3, 1, 1, 1, 0),
-                                                                       np.float32)
-            kopf_search(vol, guide, pos, new_pos, dist, level.feats, level.basis, level.mean,
-                        ex_of_axis, level.knn, params)
-            pos = new_pos
-            weights = np.ones(imgs.shape[:3], np.float32)
-            if opt.colour_histogram > 0:
-                weights = weights * colour_weights(vol, imgs, ex_of_axis, opt.colour_histogram)
-            if opt.position_histogram > 0:
-                weights = weights * position_weights(pos, opt.stride, n, ex_of_axis,
-                                                     imgs.shape[:3], opt.position_histogram)
-            averaged = np.empty_like(vol)
-            cw = ((dist.astype(np.float64) + eps) ** power).astype(np.float32)
+            guide = guides[index] if guides is not None else None
             constraint = labels[index] if labels is not None else None
-            if constraint is None:
-                kopf_average(pos, cw, imgs, ex_of_axis, weights, average, averaged, source)
-            else:
-                kopf_average_labelled(pos, cw, imgs, ex_of_axis, weights, average, constraint[1],
-                                      constraint[0], constraint[2], averaged, source)
-            vol = averaged
-            if _sharpens(opt, index, it):
-                sharp = np.empty_like(vol)
-                s = opt.sharpening
-                if s.bandwidth > 0 and constraint is not None:
-                    kopf_cluster_labelled(pos, cw, imgs, ex_of_axis, weights, average,
-                                          s.bandwidth * level.variance, s.steps, s.cross,
-                                          constraint[1], constraint[0], constraint[2], sharp,
-                                          source)
-                elif s.bandwidth > 0:
-                    kopf_cluster(pos, cw, imgs, ex_of_axis, weights, average,
-                                 s.bandwidth * level.variance, s.steps, s.cross, sharp, source)
-                else:
-                    kopf_pick(pos, imgs, ex_of_axis, averaged, average, s.pick_support, sharp,
-                              source)
-                vol = sharp
+            vol, pos, source = _iterate(task, level, vol, pos, dist, guide, constraint, opt,
+                                        params, average, _sharpens(opt, index, it))
             done += 1
             if progress is not None:
                 progress(done / total)
         prev = level
+    if opt.polish is not None and opt.polish.iterations > 0:
+        guide = guides[0] if guides is not None else None
+        constraint = labels[0] if labels is not None else None
+        vol, source = polish(task, levels[0], vol, pos, dist, guide, constraint, opt, average,
+                             search)
     return np.ascontiguousarray(vol, np.float32), np.ascontiguousarray(source, np.int32)
+
+
+def polish(task: SolidTask, level: SolidLevel, vol, pos, dist, guide, constraint,
+           opt: Optimisation, average, search):
+    """(voxels, source) after `opt.polish.iterations` more iterations at the finest level,
+    from its volume and window positions: the structure is set, so the windows may now match
+    the exemplar more freely (guides off, label constraint weaker), and with `discrete` the
+    last one gives each voxel its heaviest proposal's exemplar colour (Chen and Wang 2010's
+    discrete solver) instead of the mean."""
+    spec = opt.polish
+    if not spec.guides and guide is not None:
+        level = window_level(task, 0, window=level.window, dims=level.basis.shape[1],
+                             knn=level.knn.shape[3])
+        guide = None
+    if constraint is not None:
+        constraint = (constraint[0], constraint[1], spec.label_mismatch)
+        if spec.label_mismatch >= 1.0:
+            constraint = None
+    source = None
+    for it in range(spec.iterations):  # salts apart from the finest level's 0 .. iterations
+        params = KopfSearch(exhaustive=False, salt=np.uint64(900 + it), **search)
+        vol, pos, source = _iterate(task, level, vol, pos, dist, guide, constraint, opt,
+                                    params, average, False)
+    if spec.discrete:
+        e = np.asarray(task.ex_of_axis)[source[..., 0]]
+        vol = level.stacked[e, source[..., 1], source[..., 2]]
+    return vol, source
+
+
+def _iterate(task: SolidTask, level: SolidLevel, vol, pos, dist, guide, constraint,
+             opt: Optimisation, params: KopfSearch, average: KopfAverage, sharpen: bool):
+    """One search + average (+ sharpening) iteration: (voxels, positions, source)."""
+    ex_of_axis = task.ex_of_axis
+    imgs, n = level.stacked, level.window
+    if guide is None:
+        guide = np.zeros((3, 1, 1, 1, 0), np.float32)
+    new_pos = np.empty_like(pos)
+    kopf_search(vol, guide, pos, new_pos, dist, level.feats, level.basis, level.mean,
+                ex_of_axis, level.knn, params)
+    pos = new_pos
+    weights = np.ones(imgs.shape[:3], np.float32)
+    if opt.colour_histogram > 0:
+        weights = weights * colour_weights(vol, imgs, ex_of_axis, opt.colour_histogram)
+    if opt.position_histogram > 0:
+        weights = weights * position_weights(pos, opt.stride, n, ex_of_axis, imgs.shape[:3],
+                                             opt.position_histogram)
+    averaged = np.empty_like(vol)
+    source = np.empty((*vol.shape[:3], 3), np.int32)
+    eps = EPS * level.basis.shape[0]
+    cw = ((dist.astype(np.float64) + eps) ** ((opt.r - 2.0) / 2.0)).astype(np.float32)
+    if constraint is None:
+        kopf_average(pos, cw, imgs, ex_of_axis, weights, average, averaged, source)
+    else:
+        kopf_average_labelled(pos, cw, imgs, ex_of_axis, weights, average, constraint[1],
+                              constraint[0], constraint[2], averaged, source)
+    if not sharpen:
+        return averaged, pos, source
+    sharp = np.empty_like(vol)
+    s = opt.sharpening
+    if s.bandwidth > 0 and constraint is not None:
+        kopf_cluster_labelled(pos, cw, imgs, ex_of_axis, weights, average,
+                              s.bandwidth * level.variance, s.steps, s.cross, constraint[1],
+                              constraint[0], constraint[2], sharp, source)
+    elif s.bandwidth > 0:
+        kopf_cluster(pos, cw, imgs, ex_of_axis, weights, average, s.bandwidth * level.variance,
+                     s.steps, s.cross, sharp, source)
+    else:
+        kopf_pick(pos, imgs, ex_of_axis, averaged, average, s.pick_support, sharp, source)
+    return sharp, pos, source
 
 
 def _sharpens(opt: Optimisation, level: int, it: int) -> bool:

@@ -162,6 +162,18 @@ class SolidOptions(Options):
     final_histogram: float = option(0.75, 0.0, 1.0, "methods osmap and structure: how far the "
                                    "final colours are moved to the exemplar's per-channel "
                                    "distribution", tunable=True)
+    # --- polish (method structure: iterations at the finest level once the structure is set,
+    #     osmap_cli/solid/optimise.py's Polish) ---
+    polish: int = option(0, 0, 8, "method structure: search + average iterations after the "
+                         "fill's finest level, from its volume (0: none; the front they "
+                         "measure: docs/solid.md)", tunable=True)
+    polish_guides: int = option(0, 0, 1, "method structure: 1: the polish's windows keep the "
+                                "structure's guide channels; 0: colours only", tunable=True)
+    polish_labels: float = option(1.0, 0.0, 1.0, "method structure: the label constraint's "
+                                  "weight in the polish's averaging (1: none)", tunable=True)
+    polish_discrete: int = option(0, 0, 1, "method structure: 1: the polish's last iteration "
+                                  "gives each voxel its heaviest proposal's exemplar colour "
+                                  "instead of the mean", tunable=True)
 
     @property
     def shape(self) -> tuple[int, int, int]:
