@@ -162,6 +162,14 @@ class SolidOptions(Options):
     final_histogram: float = option(0.75, 0.0, 1.0, "methods osmap and structure: how far the "
                                    "final colours are moved to the exemplar's per-channel "
                                    "distribution", tunable=True)
+    # --- veins (method structure's residual detail on veins) ---
+    vein_detail: str = option("noise", help="method structure, veins: how the residual detail "
+                              "(fill_detail) reaches veins: noise (Gaussian noise with the "
+                              "exemplar's detail spectrum and colours, its grain along the "
+                              "sheets), copy (from each voxel's source pixel, as particles and "
+                              "layers: prints the fill's window lattice as a grid on wide "
+                              "regions) or none", choices=("noise", "copy", "none"),
+                              tunable=True)
 
     @property
     def shape(self) -> tuple[int, int, int]:

@@ -97,3 +97,64 @@ class PeriodicNoise:
                 for c in range(4):
                     out += wab * weights[2][c] * flat[zb + index[2][c]]
         return out
+
+
+def slice_matched_spectrum(radial: np.ndarray, side: int = 48, iterations: int = 25):
+    """(frequencies, power): an isotropic 3D power spectrum on the bins of `radial` (a 2D radial
+    power spectrum on equal bins from 0 to 0.5 cycles per pixel) whose planar cuts show
+    `radial`'s shape. A cut through an isotropic field sums its spectrum along the cut's
+    normal, so the 3D spectrum is not the 2D one: it is fitted by multiplicative updates on a
+    side^3 grid (the cut's spectrum is linear in the field's, and positive)."""
+    bins = len(radial)
+    freqs = (np.arange(bins) + 0.5) * 0.5 / bins
+    f = np.fft.fftfreq(side)
+    kz, ky, kx = np.meshgrid(f, f, f, indexing="ij")
+    k = np.sqrt(kz ** 2 + ky ** 2 + kx ** 2)
+    which = np.minimum((np.sqrt(ky[0] ** 2 + kx[0] ** 2) / 0.5 * bins).astype(int), bins).ravel()
+    count = np.maximum(np.bincount(which, minlength=bins + 1), 1)[:bins]
+    target = np.maximum(np.asarray(radial, np.float64), 1e-9 * max(float(np.max(radial)), 1e-30))
+    power = target.copy()
+    for _ in range(iterations):
+        cut = np.interp(k, freqs, power).sum(0).ravel()
+        shown = np.bincount(which, cut, bins + 1)[:bins] / count
+        power = power * target / np.maximum(shown, 1e-30)
+    return freqs, power
+
+
+def _stretched(frequencies, power, normal, stretch):
+    """The amplitude function of spectral_field for `power` (on `frequencies`) with the
+    frequencies within planes perpendicular to `normal` scaled by `stretch`."""
+    n = None if normal is None else np.asarray(normal, np.float64) / np.linalg.norm(normal)
+
+    def amplitude(kz, ky, kx):
+        k2 = kz ** 2 + ky ** 2 + kx ** 2
+        if n is not None and stretch != 1.0:
+            along = kz * n[0] + ky * n[1] + kx * n[2]
+            k2 = along ** 2 + stretch ** 2 * np.maximum(k2 - along ** 2, 0.0)
+        return np.sqrt(np.interp(np.sqrt(k2), frequencies, power, right=0.0))
+
+    return amplitude
+
+
+def oriented_field(shape, frequencies, power, seed: int, normal=None,
+                   stretch: float = 1.0) -> np.ndarray:
+    """float32 (shape): periodic unit-variance Gaussian noise with the isotropic power spectrum
+    `power` (on `frequencies`, cycles per voxel), its correlation `stretch` times longer within
+    the planes perpendicular to `normal` (grain lying in those planes; None or 1: isotropic)."""
+    return spectral_field(shape, _stretched(frequencies, power, normal, stretch),
+                          seed).astype(np.float32)
+
+
+def face_anisotropy(frequencies, power, normal, stretch: float, side: int = 32) -> float:
+    """How strongly oriented the gradients of oriented_field's slices are, on average over the
+    three slice families: (l1 - l2) / (l1 + l2) of their central-difference structure tensor
+    (0: isotropic), computed from the spectrum."""
+    f = np.fft.fftfreq(side)
+    k = np.meshgrid(f, f, f, indexing="ij")
+    p = _stretched(frequencies, power, normal, stretch)(*k) ** 2
+    d = [np.sin(2 * np.pi * kk) for kk in k]
+    out = []
+    for i, j in ((1, 2), (0, 2), (0, 1)):
+        a, b, c = (p * d[i] ** 2).sum(), (p * d[j] ** 2).sum(), (p * d[i] * d[j]).sum()
+        out.append(np.sqrt((a - b) ** 2 + 4 * c * c) / max(a + b, 1e-30))
+    return float(np.mean(out))
