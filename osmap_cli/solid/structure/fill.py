@@ -21,7 +21,12 @@ from osmap_cli.solid.core import SolidTask, common_shape, stack, window_level
 from osmap_cli.solid.layout import Layout, organise
 from osmap_cli.solid.optimise import Optimisation, optimise
 from osmap_cli.solid.structure.measures import squared_distance
-from osmap_cli.solid.structure.noise import face_anisotropy, oriented_field, slice_matched_spectrum
+from osmap_cli.solid.structure.noise import (
+    RADIAL_TOP,
+    face_anisotropy,
+    oriented_field,
+    slice_matched_spectrum,
+)
 from osmap_cli.solid.structure.segment import gaussian_blur
 from osmap_cli.texture.pyramid import resize
 
@@ -29,7 +34,7 @@ PLANE_AXES = ((0, 1), (0, 2), (1, 2))  # volume dims (z, y, x) spanning family 0
 REGION_VOXELS = 64.0  # a particle this small moves its mean colour only partly (see regions)
 QUANTILES = 257  # points of each phase's quantile mapping
 DETAIL_SIGMA = 1.0  # pixels: the residual detail is what a Gaussian this wide removes
-SPECTRUM_BINS = 32  # radial bins (0 to 0.5 cycles per pixel) of noise_detail's spectra
+SPECTRUM_BINS = 32  # radial bins (0 to RADIAL_TOP cycles per pixel) of noise_detail's spectra
 STRETCHES = (1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0)  # noise_detail's grain, candidates
 
 
@@ -316,20 +321,30 @@ def _radial_power(high: np.ndarray, mask: np.ndarray) -> np.ndarray:
     power = (np.abs(np.fft.fft2((high - mean) * mask[..., None], axes=(0, 1))) ** 2).sum(-1)
     fy = np.fft.fftfreq(mask.shape[0])[:, None]
     fx = np.fft.fftfreq(mask.shape[1])[None, :]
-    which = np.minimum((np.sqrt(fy ** 2 + fx ** 2) / 0.5 * SPECTRUM_BINS).astype(int),
-                       SPECTRUM_BINS).ravel()
-    count = np.maximum(np.bincount(which, minlength=SPECTRUM_BINS + 1), 1)
-    out = (np.bincount(which, power.ravel(), SPECTRUM_BINS + 1) / count)[:SPECTRUM_BINS]
+    which = np.minimum((np.sqrt(fy ** 2 + fx ** 2) / RADIAL_TOP * SPECTRUM_BINS).astype(int),
+                       SPECTRUM_BINS - 1).ravel()
+    count = np.bincount(which, minlength=SPECTRUM_BINS)
+    sums = np.bincount(which, power.ravel(), SPECTRUM_BINS)
+    have = count > 0  # a small exemplar leaves some bins empty: interpolated
+    centres = np.arange(SPECTRUM_BINS)
+    out = np.interp(centres, centres[have], sums[have] / count[have])
     out[0] = 0.0
     return out / max(float(mask.mean()), 1e-12)
 
 
-def _anisotropy(high: np.ndarray) -> float:
+def _anisotropy(high: np.ndarray, labels: np.ndarray) -> float:
     """(l1 - l2) / (l1 + l2) of the central-difference structure tensor of an image's
-    luminance, over the whole image: how strongly its gradients share one orientation."""
+    luminance, over the pixels whose 3 x 3 neighbourhood is one phase (the phases' own
+    texture, not their boundaries): how strongly its gradients share one orientation."""
     lum = high @ np.full(high.shape[2], 1.0 / high.shape[2])
     gy = (lum[2:, 1:-1] - lum[:-2, 1:-1]) / 2
     gx = (lum[1:-1, 2:] - lum[1:-1, :-2]) / 2
+    h, w = labels.shape
+    inner = np.ones((h - 2, w - 2), bool)
+    for dy in range(3):
+        for dx in range(3):
+            inner &= labels[dy:dy + h - 2, dx:dx + w - 2] == labels[1:-1, 1:-1]
+    gy, gx = gy[inner], gx[inner]
     a, b, c = (gy * gy).sum(), (gx * gx).sum(), (gy * gx).sum()
     return float(np.sqrt((a - b) ** 2 + 4 * c * c) / max(a + b, 1e-30))
 
@@ -369,7 +384,7 @@ def noise_detail(voxels: np.ndarray, images, ex_of_axis, labels, ex_labels, stre
         return voxels
     stretch = 1.0
     if normal is not None:
-        want = float(np.mean([_anisotropy(highs[e]) for e in used]))
+        want = float(np.mean([_anisotropy(highs[e], ex_labels[e]) for e in used]))
         freqs, power = slice_matched_spectrum(np.mean([p[1][1] for p in phases], 0))
         stretch = min(STRETCHES, key=lambda s: abs(face_anisotropy(freqs, power, normal, s)
                                                    - want))
