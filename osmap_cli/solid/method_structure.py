@@ -65,7 +65,7 @@ class Options:
                               sigma_max=opts.som_sigma_max, anisotropy=opts.som_anisotropy),
                 clip=opts.guide_clip, guide_weight=opts.guide_weight,
                 phase_match=opts.phase_match, detail=opts.fill_detail,
-                vein_detail=opts.vein_detail),
+                vein_detail=opts.vein_detail, vein_grain=opts.vein_grain),
             final_histogram=opts.final_histogram,
             fallback=fallback)
 
@@ -94,7 +94,8 @@ def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
                           built.identity, options.fill, progress)
     voxels = finish(voxels, found, built, options.fill.phase_match, task.tileable)
     voxels = add_detail(voxels, source, found, built, task.exemplars(0), task.ex_of_axis,
-                        options.fill.detail, task.seed, task.tileable, options.fill.vein_detail)
+                        options.fill.detail, task.seed, task.tileable, options.fill.vein_detail,
+                        options.fill.vein_grain)
     # the per-phase matching moves the low-pass only; this one gives back the exemplar's
     # extreme colours that the optimisation's averaging loses
     pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])

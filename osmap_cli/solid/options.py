@@ -170,6 +170,10 @@ class SolidOptions(Options):
                               "layers: prints the fill's window lattice as a grid on wide "
                               "regions) or none", choices=("noise", "copy", "none"),
                               tunable=True)
+    vein_grain: float = option(0.0, 0.0, 8.0, "method structure, veins: how many times longer "
+                               "the noise detail is correlated within the sheets than across "
+                               "them (1: isotropic; 0: fitted, as oriented as the exemplar's "
+                               "detail inside its phases)", tunable=True)
 
     @property
     def shape(self) -> tuple[int, int, int]:

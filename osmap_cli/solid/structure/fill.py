@@ -48,7 +48,8 @@ class Fill:
     coarsest level's first search starts from the structure's identity colours (else from
     the average of the OS-Map layout's windows, as method osmap); detail: the residual
     detail's strength after the colour matching (residual_detail; 0: none); vein_detail: how
-    veins take it (noise: noise_detail, copy: residual_detail, none)."""
+    veins take it (noise: noise_detail, copy: residual_detail, none); vein_grain: the noise's
+    stretch along the sheets (0: fitted)."""
 
     window: int
     dims: int
@@ -62,6 +63,7 @@ class Fill:
     identity_start: bool = True
     detail: float = 0.0
     vein_detail: str = "noise"
+    vein_grain: float = 0.0
 
 
 def distance_guide(labels: np.ndarray, axes, wrap: bool, clip: float) -> np.ndarray:
@@ -350,7 +352,7 @@ def _anisotropy(high: np.ndarray, labels: np.ndarray) -> float:
 
 
 def noise_detail(voxels: np.ndarray, images, ex_of_axis, labels, ex_labels, strength: float,
-                 seed: int, normal=None, wrap: bool = False) -> np.ndarray:
+                 seed: int, normal=None, wrap: bool = False, grain: float = 0.0) -> np.ndarray:
     """voxels with the exemplar's residual detail (its high-pass: the image less its Gaussian
     blur of DETAIL_SIGMA) given as noise rather than copied: per phase, 3D Gaussian noise whose
     planar cuts show the power spectrum of the phase's high-pass in the exemplar
@@ -361,7 +363,7 @@ def noise_detail(voxels: np.ndarray, images, ex_of_axis, labels, ex_labels, stre
     grid; the noise has no lattice and is periodic (it wraps). With `normal` (the sheets' mean
     normal) the noise's correlation is longer within the sheets, by the stretch (STRETCHES)
     whose slices' gradients are as strongly oriented as the exemplar's high-pass: the fine
-    streaks run along the veins as the exemplar's do."""
+    streaks run along the veins as the exemplar's do; `grain` > 0 sets that stretch."""
     if strength <= 0:
         return voxels
     highs = [np.asarray(im, np.float32) - gaussian_blur(im, DETAIL_SIGMA, wrap).astype(np.float32)
@@ -382,8 +384,8 @@ def noise_detail(voxels: np.ndarray, images, ex_of_axis, labels, ex_labels, stre
         phases.append((int(value), slice_matched_spectrum(radial), root))
     if not phases:
         return voxels
-    stretch = 1.0
-    if normal is not None:
+    stretch = grain if grain > 0 else 1.0
+    if normal is not None and grain <= 0:
         want = float(np.mean([_anisotropy(highs[e], ex_labels[e]) for e in used]))
         freqs, power = slice_matched_spectrum(np.mean([p[1][1] for p in phases], 0))
         stretch = min(STRETCHES, key=lambda s: abs(face_anisotropy(freqs, power, normal, s)

@@ -277,17 +277,17 @@ def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np
 
 
 def add_detail(voxels, source, found: Plan, built: Built, images, ex_of_axis, strength: float,
-               seed: int, wrap: bool, veins: str = "noise") -> np.ndarray:
+               seed: int, wrap: bool, veins: str = "noise", grain: float = 0.0) -> np.ndarray:
     """The filled voxels with the exemplar's residual detail, `strength` of its variance per
     phase. Particles and layers copy it from every voxel's source pixel (residual_detail).
     Veins take it as noise with the detail's spectrum, its grain along the sheets
-    (noise_detail; `veins` "copy": copied as the others, "none": none): copied, it follows the
-    fill's window lattice, which their wide uniform regions show as a grid. Phase fields take
-    none."""
+    (noise_detail, `grain` its stretch along them, 0: fitted; `veins` "copy": copied as the
+    others, "none": none): copied, it follows the fill's window lattice, which their wide
+    uniform regions show as a grid. Phase fields take none."""
     if found.kind in ("particles", "layers") or (found.kind == "veins" and veins == "copy"):
         return residual_detail(voxels, source, images, ex_of_axis, built.labels,
                                found.ex_labels, strength, wrap)
     if found.kind == "veins" and veins == "noise":
         return noise_detail(voxels, images, ex_of_axis, built.labels, found.ex_labels, strength,
-                            seed, found.model.normal, wrap)
+                            seed, found.model.normal, wrap, grain)
     return voxels
