@@ -285,3 +285,31 @@ def test_vein_detail_grain_lies_along_the_sheets():
         assert corr * np.sign(n[i] * n[j]) > 0.2, a
     assert face_anisotropy(freqs, power, n, 1.0) < 0.01
     assert face_anisotropy(freqs, power, n, 2.0) > 0.3
+
+
+def test_vein_detail_options_reach_the_fill_and_choose_the_detail():
+    """--vein-detail and --vein-grain reach method structure's fill; "none" leaves veins as the
+    fill made them, "copy" copies the detail from the source pixels as for particles."""
+    from types import SimpleNamespace
+
+    from osmap_cli.solid import SolidOptions
+    from osmap_cli.solid.method_structure import Options
+    from osmap_cli.solid.structure.fill import residual_detail
+    from osmap_cli.solid.structure.method import add_detail
+
+    fill = Options.from_solid(SolidOptions(vein_detail="copy", vein_grain=2.0)).fill
+    assert (fill.vein_detail, fill.vein_grain) == ("copy", 2.0)
+    image, ex_labels, voxels, labels = _vein_detail_case(0.5, side=16)
+    found = SimpleNamespace(kind="veins", ex_labels=[ex_labels],
+                            model=SimpleNamespace(normal=np.array([1.0, 0.0, 0.0])))
+    rng = np.random.default_rng(0)
+    source = np.stack([np.zeros(labels.shape, np.int32),
+                       rng.integers(0, 64, labels.shape, dtype=np.int32),
+                       rng.integers(0, 64, labels.shape, dtype=np.int32)], -1)
+    args = (voxels, source, found, SimpleNamespace(labels=labels), [image],
+            np.zeros(3, np.int64), 1.0)
+    assert np.array_equal(add_detail(*args, seed=1, wrap=False, veins="none"), voxels)
+    copied = add_detail(*args, seed=1, wrap=False, veins="copy")
+    assert np.array_equal(copied, residual_detail(voxels, source, [image], np.zeros(3, np.int64),
+                                                  labels, [ex_labels], 1.0))
+    assert not np.array_equal(copied, voxels)

@@ -294,7 +294,15 @@ def residual_detail(voxels: np.ndarray, source: np.ndarray, images, ex_of_axis, 
     own = slice_detail(voxels, wrap)
     added = (detail.astype(np.float64) ** 2).sum(-1)
     used = sorted(set(int(e) for e in ex_of_axis))
-    gain = np.zeros(voxels.shape[:3], np.float32)
+    gain = _detail_gain(own, added, highs, used, labels, ex_labels, strength)
+    return (voxels + gain[..., None] * detail).astype(np.float32)
+
+
+def _detail_gain(own, added, highs, used, labels, ex_labels, strength: float) -> np.ndarray:
+    """float32 (Z, Y, X): per phase, the factor on the added detail (its variance per voxel
+    `added`) that brings the volume's detail variance (`own` before it) to `strength` times the
+    exemplar's high-pass variance in that phase; 0 where the fill already has that much."""
+    gain = np.zeros(labels.shape, np.float32)
     for value in np.unique(labels):
         ref = np.concatenate([(highs[e][ex_labels[e] == value] ** 2).sum(-1) for e in used])
         inside = labels == value
@@ -304,7 +312,7 @@ def residual_detail(voxels: np.ndarray, source: np.ndarray, images, ex_of_axis, 
         have = float(added[inside].mean())
         if want > 0 and have > 0:
             gain[inside] = np.sqrt(want / have)
-    return (voxels + gain[..., None] * detail).astype(np.float32)
+    return gain
 
 
 def slice_detail(values: np.ndarray, wrap: bool = False) -> np.ndarray:
@@ -397,16 +405,6 @@ def noise_detail(voxels: np.ndarray, images, ex_of_axis, labels, ex_labels, stre
                                          normal, stretch) for c in range(channels)], -1)
         inside = labels == value
         detail[inside] = (noise[inside] @ root.T).astype(np.float32)
-    own = slice_detail(voxels, wrap)
-    added = slice_detail(detail, wrap)
-    gain = np.zeros(shape, np.float32)
-    for value, _, _ in phases:
-        ref = np.concatenate([(highs[e][ex_labels[e] == value] ** 2).sum(-1) for e in used])
-        inside = labels == value
-        if not inside.any():
-            continue
-        want = strength * float(ref.mean()) - float(own[inside].mean())
-        have = float(added[inside].mean())
-        if want > 0 and have > 0:
-            gain[inside] = np.sqrt(want / have)
+    gain = _detail_gain(slice_detail(voxels, wrap), slice_detail(detail, wrap), highs, used,
+                        labels, ex_labels, strength)
     return (voxels + gain[..., None] * detail).astype(np.float32)
