@@ -207,3 +207,109 @@ def test_forced_layers_on_patches_follow_the_measured_direction():
     assert found.kind == "layers" and found.analyses[0].kind != "layers"
     labels = build_structure(found, (24, 24, 24), 1, False).labels
     assert len(np.unique(labels)) >= 2
+
+
+def _centroid(values: np.ndarray) -> float:
+    """The mean radial frequency (cycles per pixel) of the power spectrum of images (..., H, W),
+    up to 0.5 cycles (what isotropic noise on a voxel grid can hold)."""
+    power = np.abs(np.fft.fft2(values - values.mean((-2, -1), keepdims=True))) ** 2
+    power = power.reshape(-1, *values.shape[-2:]).sum(0)
+    fy = np.fft.fftfreq(values.shape[-2])[:, None]
+    fx = np.fft.fftfreq(values.shape[-1])[None, :]
+    radius = np.sqrt(fy ** 2 + fx ** 2)
+    power = np.where(radius <= 0.5, power, 0.0)
+    return float((power * radius).sum() / power.sum())
+
+
+def _vein_detail_case(grain: float, side: int = 32):
+    """(exemplar, its phases, filled voxels, their labels): two phases in diagonal bands, the
+    exemplar's grain a noise blurred by `grain` px (streaked along the bands with grain > 0),
+    the voxels the phases' flat colours (a fill that lost the grain)."""
+    rng = np.random.default_rng(3)
+    y, x = np.mgrid[0:64, 0:64]
+    ex_labels = (((x + y) // 12) % 2).astype(np.int64)
+    noise = rng.normal(0, 1, (64, 64, 1))
+    noise = gaussian_blur(noise, grain) if grain > 0 else noise
+    noise = noise / noise.std() * 0.04
+    image = (COLOURS[ex_labels] + noise * np.array([1.0, 0.8, 0.6])).astype(np.float32)
+    z, v, u = np.mgrid[0:side, 0:side, 0:side]
+    labels = (((u - v - z) % 24) < 12).astype(np.int64)
+    return image, ex_labels, COLOURS[labels].astype(np.float32), labels
+
+
+@pytest.mark.parametrize("grain", [0.5, 1.0])
+def test_veins_take_the_exemplars_detail_as_noise_of_its_spectrum(grain):
+    """The residual detail the fill loses comes back on veins with each phase's high-pass
+    variance and spectrum on every slice family (its centroid within 20 %: isotropic noise on a
+    voxel grid holds frequencies up to 0.5 cycles, so its cuts show less just below that),
+    without the fill's window lattice (it does not read the fill's source pixels, here all one
+    pixel)."""
+    from types import SimpleNamespace
+
+    from osmap_cli.solid.structure.fill import DETAIL_SIGMA, slice_detail
+    from osmap_cli.solid.structure.method import add_detail
+
+    image, ex_labels, voxels, labels = _vein_detail_case(grain)
+    found = SimpleNamespace(kind="veins", ex_labels=[ex_labels],
+                            model=SimpleNamespace(normal=np.array([1.0, -1.0, -1.0]) / 3 ** 0.5))
+    source = np.zeros((*labels.shape, 3), np.int32)
+    out = add_detail(voxels, source, found, SimpleNamespace(labels=labels), [image],
+                     np.zeros(3, np.int64), 1.0, seed=5, wrap=False)
+    high = image - gaussian_blur(image, DETAIL_SIGMA)
+    got = slice_detail(out)
+    for value in (0, 1):
+        want = float((high[ex_labels == value] ** 2).sum(-1).mean())
+        assert 0.8 < float(got[labels == value].mean()) / want < 1.25
+    detail = (out - voxels).sum(-1)
+    ex_centroid = _centroid((high - gaussian_blur(high, 6.0)).sum(-1))
+    for family in (detail, detail.transpose(1, 0, 2), detail.transpose(2, 0, 1)):
+        assert abs(_centroid(family - gaussian_blur(family, 6.0, axes=(1, 2))) / ex_centroid
+                   - 1) < 0.2
+    again = add_detail(voxels, source, found, SimpleNamespace(labels=labels), [image],
+                       np.zeros(3, np.int64), 1.0, seed=5, wrap=False)
+    assert np.array_equal(out, again)
+
+
+def test_vein_detail_grain_lies_along_the_sheets():
+    """Noise stretched within planes normal to n: on every slice family its gradients lie
+    along n's trace (the fine streaks run along the veins); unstretched it is isotropic."""
+    from osmap_cli.solid.structure.noise import face_anisotropy, oriented_field
+
+    freqs = (np.arange(32) + 0.5) / 64
+    power = np.exp(-(freqs / 0.2) ** 2)
+    n = np.array([1.0, -1.0, -1.0]) / 3 ** 0.5
+    field = oriented_field((32, 32, 32), freqs, power, 1, n, 2.0)
+    for a, (i, j) in enumerate(((1, 2), (0, 2), (0, 1))):
+        g = np.gradient(field)
+        corr = float((g[i] * g[j]).mean() / np.sqrt((g[i] ** 2).mean() * (g[j] ** 2).mean()))
+        assert corr * np.sign(n[i] * n[j]) > 0.2, a
+    assert face_anisotropy(freqs, power, n, 1.0) < 0.01
+    assert face_anisotropy(freqs, power, n, 2.0) > 0.3
+
+
+def test_vein_detail_options_reach_the_fill_and_choose_the_detail():
+    """--vein-detail and --vein-grain reach method structure's fill; "none" leaves veins as the
+    fill made them, "copy" copies the detail from the source pixels as for particles."""
+    from types import SimpleNamespace
+
+    from osmap_cli.solid import SolidOptions
+    from osmap_cli.solid.method_structure import Options
+    from osmap_cli.solid.structure.fill import residual_detail
+    from osmap_cli.solid.structure.method import add_detail
+
+    fill = Options.from_solid(SolidOptions(vein_detail="copy", vein_grain=2.0)).fill
+    assert (fill.vein_detail, fill.vein_grain) == ("copy", 2.0)
+    image, ex_labels, voxels, labels = _vein_detail_case(0.5, side=16)
+    found = SimpleNamespace(kind="veins", ex_labels=[ex_labels],
+                            model=SimpleNamespace(normal=np.array([1.0, 0.0, 0.0])))
+    rng = np.random.default_rng(0)
+    source = np.stack([np.zeros(labels.shape, np.int32),
+                       rng.integers(0, 64, labels.shape, dtype=np.int32),
+                       rng.integers(0, 64, labels.shape, dtype=np.int32)], -1)
+    args = (voxels, source, found, SimpleNamespace(labels=labels), [image],
+            np.zeros(3, np.int64), 1.0)
+    assert np.array_equal(add_detail(*args, seed=1, wrap=False, veins="none"), voxels)
+    copied = add_detail(*args, seed=1, wrap=False, veins="copy")
+    assert np.array_equal(copied, residual_detail(voxels, source, [image], np.zeros(3, np.int64),
+                                                  labels, [ex_labels], 1.0))
+    assert not np.array_equal(copied, voxels)

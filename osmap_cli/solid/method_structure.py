@@ -10,7 +10,8 @@ structure as guide channels of every slice window, starting from the OS-Map's la
 coarsest volume, with method osmap's colour and exemplar-position histogram weights and its
 sharpening passes at the coarser levels (`fill_sharpen`); finally each phase's colours, and
 each particle's mean colour, are matched to the exemplar's, the exemplar's residual detail
-added from each voxel's source pixel to particles and layers (`fill_detail`), and the whole
+added (`fill_detail`: copied from each voxel's source pixel to particles and layers, as noise
+along the sheets to veins, `vein_detail`), and the whole
 volume's colours moved `final_histogram` of the way to the exemplar's distribution. An
 exemplar with none of these structures is made by method osmap.
 """
@@ -27,14 +28,12 @@ from osmap_cli.solid import method_osmap
 from osmap_cli.solid.core import SolidResult, SolidTask
 from osmap_cli.solid.layout import Layout
 from osmap_cli.solid.optimise import Optimisation, Polish, quality_scaled
-from osmap_cli.solid.structure.fill import Fill, fill, residual_detail
-from osmap_cli.solid.structure.method import build_structure, finish, plan
+from osmap_cli.solid.structure.fill import Fill, fill
+from osmap_cli.solid.structure.method import add_detail, build_structure, finish, plan
 from osmap_cli.texture.histogram import match_quantiles
 
 if TYPE_CHECKING:
     from osmap_cli.solid.options import SolidOptions
-
-DETAILED = ("particles", "layers")  # the structures that take the residual detail
 
 
 @dataclass(frozen=True)
@@ -68,7 +67,8 @@ class Options:
                 layout=Layout(steps_per_node=opts.som_steps_per_node,
                               sigma_max=opts.som_sigma_max, anisotropy=opts.som_anisotropy),
                 clip=opts.guide_clip, guide_weight=opts.guide_weight,
-                phase_match=opts.phase_match, detail=opts.fill_detail),
+                phase_match=opts.phase_match, detail=opts.fill_detail,
+                vein_detail=opts.vein_detail, vein_grain=opts.vein_grain),
             final_histogram=opts.final_histogram,
             fallback=fallback)
 
@@ -96,12 +96,9 @@ def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
     voxels, source = fill(task, found.ex_labels, found.ex_identity, built.labels,
                           built.identity, options.fill, progress)
     voxels = finish(voxels, found, built, options.fill.phase_match, task.tileable)
-    # veins and phase fields take none: their wide uniform regions would show the heaviest
-    # proposal's 2-voxel period (the window lattice) as a grid, and without that period the
-    # detail brings nothing (docs/solid.md, "Measured")
-    detail = options.fill.detail if found.kind in DETAILED else 0.0
-    voxels = residual_detail(voxels, source, task.exemplars(0), task.ex_of_axis, built.labels,
-                             found.ex_labels, detail, task.tileable)
+    voxels = add_detail(voxels, source, found, built, task.exemplars(0), task.ex_of_axis,
+                        options.fill.detail, task.seed, task.tileable, options.fill.vein_detail,
+                        options.fill.vein_grain)
     # the per-phase matching moves the low-pass only; this one gives back the exemplar's
     # extreme colours that the optimisation's averaging loses
     pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])

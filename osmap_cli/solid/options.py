@@ -174,6 +174,18 @@ class SolidOptions(Options):
     polish_discrete: int = option(0, 0, 1, "method structure: 1: the polish's last iteration "
                                   "gives each voxel its heaviest proposal's exemplar colour "
                                   "instead of the mean", tunable=True)
+    # --- veins (method structure's residual detail on veins) ---
+    vein_detail: str = option("noise", help="method structure, veins: how the residual detail "
+                              "(fill_detail) reaches veins: noise (Gaussian noise with the "
+                              "exemplar's detail spectrum and colours, its grain along the "
+                              "sheets), copy (from each voxel's source pixel, as particles and "
+                              "layers: prints the fill's window lattice as a grid on wide "
+                              "regions) or none", choices=("noise", "copy", "none"),
+                              tunable=True)
+    vein_grain: float = option(0.0, 0.0, 8.0, "method structure, veins: how many times longer "
+                               "the noise detail is correlated within the sheets than across "
+                               "them (1: isotropic; 0: fitted, as oriented as the exemplar's "
+                               "detail inside its phases)", tunable=True)
 
     @property
     def shape(self) -> tuple[int, int, int]:

@@ -23,7 +23,12 @@ from osmap_cli.solid.structure import field as fd
 from osmap_cli.solid.structure import layers as ly
 from osmap_cli.solid.structure import particles as pt
 from osmap_cli.solid.structure import sheets as sh
-from osmap_cli.solid.structure.fill import match_phases, match_regions
+from osmap_cli.solid.structure.fill import (
+    match_phases,
+    match_regions,
+    noise_detail,
+    residual_detail,
+)
 from osmap_cli.solid.structure.profiles import profile_ids
 from osmap_cli.solid.structure.segment import Segmenter, gaussian_blur, smooth_volume
 
@@ -269,3 +274,20 @@ def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np
         matched = match_regions(matched, built.regions, built.region_colours,
                                 built.coverage[..., 1], pixels.min(0), pixels.max(0))
     return (voxels + strength * (matched - voxels)).astype(np.float32)
+
+
+def add_detail(voxels, source, found: Plan, built: Built, images, ex_of_axis, strength: float,
+               seed: int, wrap: bool, veins: str = "noise", grain: float = 0.0) -> np.ndarray:
+    """The filled voxels with the exemplar's residual detail, `strength` of its variance per
+    phase. Particles and layers copy it from every voxel's source pixel (residual_detail).
+    Veins take it as noise with the detail's spectrum, its grain along the sheets
+    (noise_detail, `grain` its stretch along them, 0: fitted; `veins` "copy": copied as the
+    others, "none": none): copied, it follows the fill's window lattice, which their wide
+    uniform regions show as a grid. Phase fields take none."""
+    if found.kind in ("particles", "layers") or (found.kind == "veins" and veins == "copy"):
+        return residual_detail(voxels, source, images, ex_of_axis, built.labels,
+                               found.ex_labels, strength, wrap)
+    if found.kind == "veins" and veins == "noise":
+        return noise_detail(voxels, images, ex_of_axis, built.labels, found.ex_labels, strength,
+                            seed, found.model.normal, wrap, grain)
+    return voxels

@@ -9,6 +9,11 @@ import numpy as np
 
 from osmap_cli.solid.upsample import upsample_linear
 
+RADIAL_TOP = np.sqrt(0.5)  # cycles per pixel: the highest radial frequency of a 2D grid
+# cycles per voxel: a 3D grid holds every direction up to here only; beyond it the cube's
+# corners would favour some directions, so isotropic noise stops here
+ISOTROPIC_TOP = 0.5
+
 
 def spectral_field(shape, amplitude, seed: int) -> np.ndarray:
     """float64 (shape): periodic Gaussian noise whose Fourier amplitudes are `amplitude(kz, ky,
@@ -97,3 +102,78 @@ class PeriodicNoise:
                 for c in range(4):
                     out += wab * weights[2][c] * flat[zb + index[2][c]]
         return out
+
+
+def slice_matched_spectrum(radial: np.ndarray, side: int = 48, iterations: int = 25):
+    """(frequencies, power): an isotropic 3D power spectrum on the bins of `radial` (a 2D radial
+    power spectrum on equal bins from 0 to RADIAL_TOP cycles per pixel) whose planar cuts show
+    `radial`'s shape. A cut through an isotropic field sums its spectrum along the cut's
+    normal, so the 3D spectrum is not the 2D one: it is fitted by multiplicative updates on a
+    side^3 grid (the cut's spectrum is linear in the field's, and positive), zero beyond
+    ISOTROPIC_TOP."""
+    bins = len(radial)
+    freqs = (np.arange(bins) + 0.5) * RADIAL_TOP / bins
+    f = np.fft.fftfreq(side)
+    kz, ky, kx = np.meshgrid(f, f, f, indexing="ij")
+    k = np.sqrt(kz ** 2 + ky ** 2 + kx ** 2)
+    which = np.minimum((np.sqrt(ky[0] ** 2 + kx[0] ** 2) / RADIAL_TOP * bins).astype(int),
+                       bins).ravel()
+    count = np.maximum(np.bincount(which, minlength=bins + 1), 1)[:bins]
+    target = np.maximum(_smoothed(np.asarray(radial, np.float64)),
+                        1e-6 * max(float(np.max(radial)), 1e-30))
+    inside = freqs <= ISOTROPIC_TOP
+    power = np.where(inside, target, 0.0)
+    for _ in range(iterations):
+        cut = np.interp(k, freqs, power).sum(0).ravel()
+        shown = np.bincount(which, cut, bins + 1)[:bins] / count
+        # smoothed and floored: the inversion is ill-posed, and unchecked it makes spikes
+        power = np.maximum(_smoothed(power * target / np.maximum(shown, 1e-30)),
+                           1e-6 * power.max())
+        power[~inside] = 0.0
+    return freqs, power
+
+
+def _smoothed(values: np.ndarray) -> np.ndarray:
+    """values filtered by [1, 2, 1] / 4, the ends held."""
+    padded = np.concatenate([values[:1], values, values[-1:]])
+    return 0.25 * padded[:-2] + 0.5 * padded[1:-1] + 0.25 * padded[2:]
+
+
+def _stretched(frequencies, power, normal, stretch):
+    """The amplitude function of spectral_field for `power` (on `frequencies`) with the
+    frequencies within planes perpendicular to `normal` scaled by `stretch`."""
+    n = None if normal is None else np.asarray(normal, np.float64) / np.linalg.norm(normal)
+
+    def amplitude(kz, ky, kx):
+        k2 = kz ** 2 + ky ** 2 + kx ** 2
+        if n is not None and stretch != 1.0:
+            along = kz * n[0] + ky * n[1] + kx * n[2]
+            k2 = along ** 2 + stretch ** 2 * np.maximum(k2 - along ** 2, 0.0)
+        k = np.sqrt(k2)
+        return np.where(k <= ISOTROPIC_TOP, np.sqrt(np.interp(k, frequencies, power)), 0.0)
+
+    return amplitude
+
+
+def oriented_field(shape, frequencies, power, seed: int, normal=None,
+                   stretch: float = 1.0) -> np.ndarray:
+    """float32 (shape): periodic unit-variance Gaussian noise with the isotropic power spectrum
+    `power` (on `frequencies`, cycles per voxel), its correlation `stretch` times longer within
+    the planes perpendicular to `normal` (grain lying in those planes; None or 1: isotropic)."""
+    return spectral_field(shape, _stretched(frequencies, power, normal, stretch),
+                          seed).astype(np.float32)
+
+
+def face_anisotropy(frequencies, power, normal, stretch: float, side: int = 32) -> float:
+    """How strongly oriented the gradients of oriented_field's slices are, on average over the
+    three slice families: (l1 - l2) / (l1 + l2) of their central-difference structure tensor
+    (0: isotropic), computed from the spectrum."""
+    f = np.fft.fftfreq(side)
+    k = np.meshgrid(f, f, f, indexing="ij")
+    p = _stretched(frequencies, power, normal, stretch)(*k) ** 2
+    d = [np.sin(2 * np.pi * kk) for kk in k]
+    out = []
+    for i, j in ((1, 2), (0, 2), (0, 1)):
+        a, b, c = (p * d[i] ** 2).sum(), (p * d[j] ** 2).sum(), (p * d[i] * d[j]).sum()
+        out.append(np.sqrt((a - b) ** 2 + 4 * c * c) / max(a + b, 1e-30))
+    return float(np.mean(out))
