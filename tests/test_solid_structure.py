@@ -17,12 +17,14 @@ import pytest
 from osmap_cli.imageio import read_image, write_image
 from osmap_cli.solid import SolidOptions, synthesize_solid
 from osmap_cli.solid.structure import measures
+from osmap_cli.solid.structure import particles as pt
 from osmap_cli.solid.structure.analysis import Reader, analyse, split_lines
 from osmap_cli.solid.structure.fill import match_phases, match_regions
 from osmap_cli.solid.structure.layers import ring_centre
 from osmap_cli.solid.structure.meter import diagonal_cuts, profile_meter
 from osmap_cli.solid.structure.method import build_structure, plan
 from osmap_cli.solid.structure.particle_colour import match_particles, source_distributions
+from osmap_cli.solid.structure.profiles import ProfileStats
 from osmap_cli.solid.structure.segment import Segmenter, lab
 from osmap_cli.solid.volumeio import read_volume
 from osmap_kernels.structure import label_components, place_spheres
@@ -148,6 +150,21 @@ def test_particle_exemplar_keeps_its_profile_sizes_and_shapes(cells64):
     # the analysis' scale): 0.08, 0.21 and 0.11
     assert max(errors["fraction"], errors["diameter"]) < 0.06, errors
     assert report["errors"]["diagonal"]["fraction"] < 0.06, report["errors"]["diagonal"]
+
+
+def test_the_fit_aims_small_only_for_exemplars_read_enlarged():
+    # 80 profiles of 5-8 px at 30 %, as a 128 px exemplar shows them (read 1x) and as a 64 px
+    # one read 2x shows them: the fill grows particles only in the second case (FILL_GROWTH)
+    rng = np.random.default_rng(0)
+    for factor, aim in ((1.0, 1.0), (2.0, 1 / 1.1)):
+        d = rng.uniform(5, 8, 80) * factor
+        target = ProfileStats(0.3, 80, 0.0, np.sort(d), 0.9, 1.3)
+        sources = pt.ParticleSources(d, rng.uniform(0, 1, (80, 3)), target, 2.0 * factor)
+        _, got = pt.fit(sources, 1, factor=factor, cap=16)
+        g, w = got.figures(), target.scaled(1 / factor).figures()
+        size = np.sqrt(g["diameter"] * g["d90"] / (w["diameter"] * w["d90"]))
+        # measured 1.02 and 0.93; aimed 1.1 times small at both factors: 0.92 for the first
+        assert abs(size / aim - 1) < 0.05, (factor, size)
 
 
 def test_a_particle_filled_from_two_exemplar_cells_takes_one_cells_colours():
