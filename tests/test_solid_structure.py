@@ -167,22 +167,6 @@ def test_the_fit_aims_small_only_for_exemplars_read_enlarged():
         assert abs(size / aim - 1) < 0.05, (factor, size)
 
 
-def test_every_source_profile_is_drawn_its_expected_number_of_times():
-    # a plane hits a particle in proportion to its size: profiles are drawn with weight
-    # 1 / diameter, and each as often as that weight says (give or take one), so a volume
-    # does not lose (or double) the few large chips that carry much of the exemplar's area
-    d = np.array([24.0, 24.0] + [4.0] * 38)
-    target = ProfileStats(0.3, 40, 0.0, np.sort(d), 0.9, 1.3)
-    sources = pt.ParticleSources(d, np.zeros((40, 3)), target, 2.0)
-    params = pt.ParticleParams(density=400 / 32 ** 3)
-    for seed in (1, 2, 3):
-        source = pt.build((32, 32, 32), params, sources, seed, False).source
-        expected = len(source) * (1 / d) / (1 / d).sum()
-        counts = np.bincount(source, minlength=40)
-        # independent draws (a multinomial, 400 of them): some profile 6 to 8 off on seeds 1-3
-        assert np.abs(counts - expected).max() < 1.0, (seed, counts[:2], expected[:2])
-
-
 def test_a_particle_filled_from_two_exemplar_cells_takes_one_cells_colours():
     # an exemplar of 16 flat cells of distinct colours, each with a light-to-dark shading
     # along x, on dark borders
