@@ -130,16 +130,6 @@ def _unit(rng, shape):
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
-def _stratified(rng, p: np.ndarray, n: int) -> np.ndarray:
-    """n indices drawn with probabilities p, systematically (one uniform offset, n equal
-    steps through the cumulative p), in random order: every source is drawn its expected
-    number of times give or take one, so the few large profiles that carry much of the
-    exemplar's area are not left out (or doubled) by chance in one volume."""
-    at = (rng.uniform() + np.arange(n)) / n
-    pick = np.minimum(np.searchsorted(np.cumsum(p), at, side="right"), len(p) - 1)
-    return rng.permutation(pick)
-
-
 def build(shape, params: ParticleParams, sources: ParticleSources, seed: int,
           wrap: bool, factor: float = 1.0) -> Particles:
     """The particles of a (Z, Y, X) volume (periodic with wrap); `factor`: the sources and
@@ -153,7 +143,7 @@ def build(shape, params: ParticleParams, sources: ParticleSources, seed: int,
                    int(volume // MIN_VOXELS)))
     d = sources.diameters / factor
     weights = 1.0 / d
-    pick = _stratified(rng, weights / weights.sum(), n)
+    pick = rng.choice(len(d), n, p=weights / weights.sum())
     mean_d = float(np.exp(np.log(d).mean()))
     radii = 0.5 * params.size * mean_d * (d[pick] / mean_d) ** params.spread
     order = np.argsort(-radii, kind="stable")
