@@ -29,6 +29,7 @@ from osmap_cli.solid.structure.fill import (
     noise_detail,
     residual_detail,
 )
+from osmap_cli.solid.structure.particle_colour import match_particles
 from osmap_cli.solid.structure.profiles import profile_ids
 from osmap_cli.solid.structure.segment import Segmenter, gaussian_blur, smooth_volume
 
@@ -273,6 +274,9 @@ def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np
     if built.regions is not None:
         matched = match_regions(matched, built.regions, built.region_colours,
                                 built.coverage[..., 1], pixels.min(0), pixels.max(0))
+        matched = match_particles(matched, found.images, [a.reader for a in found.analyses],
+                                  built.regions, built.region_colours, built.coverage[..., 1],
+                                  wrap)
     return (voxels + strength * (matched - voxels)).astype(np.float32)
 
 

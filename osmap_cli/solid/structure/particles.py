@@ -40,8 +40,11 @@ FINAL_GAP = 1.0  # voxels: the least gap between touching particles in a volume 
 #                  1-voxel gaps: osmap_cli.solid.structure.fill, label_constraint)
 PROBE_SIDE = (32, 64)  # voxels: the fit's probe volume, four 90th-percentile diameters a side
 MIN_PROBE = 32  # voxels: the least probe side when a small volume caps it
-FILL_GROWTH = 1.1  # the fill and the colour matching read particles this much larger than built
-#                    (granules.py and texmetrics' scale on gravel and terrazzo, 64^3)
+# how much larger the fill and the colour matching read particles than built, by the factor the
+# exemplar is read enlarged (analysis.Reader.factor): 64 px exemplars (read 2x) grow 1.1
+# (granules.py and texmetrics' scale on gravel and terrazzo at 64^3); 128 px ones (read 1x)
+# do not (gravel at 128^3 fitted 1.1 smaller read 0.90 of the exemplar's diameters finished)
+FILL_GROWTH = {1: 1.0, 2: 1.1}
 SOURCE_MIN_AREA = 1  # px: specks too are particles (the fill alone does not make them)
 # the sizes fitted are the area-weighted mean and the 90th percentile: what the eye reads as the
 # stones' size (the many small cuts of a particle's caps, which a 2D exemplar need not show,
@@ -223,7 +226,7 @@ def _error(got: dict, want: dict) -> float:
 
 
 def fit(sources: ParticleSources, seed: int, probe: int | None = None, log=None,
-        factor: float = 1.0, cap: int | None = None, growth: float = FILL_GROWTH):
+        factor: float = 1.0, cap: int | None = None, growth: float | None = None):
     """(ParticleParams, the best probe's cut statistics in voxels): rounds of build, cut,
     measure, correct on a periodic probe volume built as the volumes will be (`factor`: the
     sources are in pixels `factor` times smaller than a voxel, as for build; the least gap
@@ -233,7 +236,10 @@ def fit(sources: ParticleSources, seed: int, probe: int | None = None, log=None,
     degenerate exemplar (a few large profiles among many specks) asks for many particles.
     Sparse particles: size sets the diameters, the number the area fraction; dense ones
     (cells): the number sets the diameters, the gap the fraction. The diameters are fitted
-    `growth` times smaller than the exemplar's: the fill reads the particles that much larger."""
+    `growth` times smaller than the exemplar's: the fill reads the particles that much larger
+    (None: FILL_GROWTH of the factor)."""
+    if growth is None:
+        growth = FILL_GROWTH.get(int(round(factor)), FILL_GROWTH[2])
     tf = sources.target.scaled(1.0 / (factor * growth)).figures()
     if probe is None:
         probe = int(np.clip(4 * max(tf["d90"], 8.0), *PROBE_SIDE))
