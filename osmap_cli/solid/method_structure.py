@@ -9,7 +9,7 @@ Gaussian field), then the Kopf et al. optimisation fills in the appearance with 
 structure as guide channels of every slice window, starting from the OS-Map's layout of the
 coarsest volume, with method osmap's colour and exemplar-position histogram weights and its
 sharpening passes at the coarser levels (`fill_sharpen`); finally each phase's colours, and
-each particle's mean colour, are matched to the exemplar's, the exemplar's residual detail
+each particle's colours, are matched to the exemplar's, the exemplar's residual detail
 added (`fill_detail`: copied from each voxel's source pixel to particles and layers, as noise
 along the sheets to veins, `vein_detail`), and the whole
 volume's colours moved `final_histogram` of the way to the exemplar's distribution. An
