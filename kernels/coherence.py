@@ -191,8 +191,8 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice, pha
     not called: each array handed to an inlined function costs atomic reference-count updates
     per call, about half the time of a pass. Other pixels and candidates go to _total_cost.
 
-    A settled pixel is not searched further: on that fast path, with no lattice or integral
-    ones only (lattice_snap keeps an integral position integral), an integral box [p.lo, p.hi]
+    A settled pixel is not searched further: on that fast path, with no lattice or one integral
+    lattice (lattice_snap keeps an integral position integral), an integral box [p.lo, p.hi]
     and non-negative p.seam and p.guide, every candidate is integral, so one other than the
     current position breaks every 8-neighbour inside the output when all of them continue the
     pixel's copy, and its seam term alone, p.seam * that count (or more with a guide), reaches
@@ -219,12 +219,10 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice, pha
     # the coherent and k-NN candidates of a pixel, in the order they are costed
     listed = np.empty((8 * (1 + k), 3))  # (row, col, 1 for a neighbour's continuation)
     # every candidate is integral where the pixel's window is (fast): settling is exact. An
-    # integral lattice (identity Jacobian) snaps integral positions to integral ones.
-    snaps_integral = lattice.rank == 0 or lattice.integral
-    for region in range(table.shape[0]):
-        if table[region, 0] != 0.0 and table[region, 15] == 0.0:
-            snaps_integral = False
-    plain = (snaps_integral and p.seam >= 0.0 and p.guide >= 0.0
+    # integral lattice (identity Jacobian) snaps integral positions to integral ones; a table
+    # of regions' lattices is searched in full
+    plain = ((lattice.rank == 0 or lattice.integral) and table.shape[0] == 0
+             and p.seam >= 0.0 and p.guide >= 0.0
              and p.lo[0] == np.floor(p.lo[0]) and p.lo[1] == np.floor(p.lo[1])
              and p.hi[0] == np.floor(p.hi[0]) and p.hi[1] == np.floor(p.hi[1]))
     for y in range(y0, y1):
