@@ -479,9 +479,10 @@ KnnParams = namedtuple("KnnParams", "lo hi k stride exclude")
 _DOT_SLACK = 1e-5
 _SQUARE_SLACK = 1e-6
 _TINY = 1e-30  # below any of these: float32 squares that underflow
-# one product's size (its rows: pixels): a few hundred kB of dot products, in the cache when the
-# kernel reads them
-_SCREEN_BYTES = 1 << 18
+_INVERSE = 1.0 / (1.0 - _SQUARE_SLACK) * (1.0 + 1e-15)  # no smaller than the division
+# one product's size (its rows: pixels): about 1 MB of dot products, in the cache when the
+# kernel reads them, in few enough calls
+_SCREEN_BYTES = 1 << 20
 
 
 def knn_table(feat, p):
@@ -503,8 +504,10 @@ def knn_table(feat, p):
     bounds = np.stack(((1.0 + _DOT_SLACK) * norms, (1.0 - _DOT_SLACK) * norms))
     pixels = max(1, _SCREEN_BYTES // (4 * max(refs.shape[0], 1)))
     # features-major for the exact sums, as the direct search holds them
-    run_bands(_knn_band, h, feat, refs, np.ascontiguousarray(refs.T), bounds, ref_y, ref_x, p,
-              out, pixels)
+    # each reference's row and column (scan order), read where a reference is kept
+    grid_y, grid_x = np.meshgrid(ref_y, ref_x, indexing="ij")
+    run_bands(_knn_band, h, feat, refs, np.ascontiguousarray(refs.T), bounds, grid_y.ravel(),
+              grid_x.ravel(), p, out, pixels)
     return out
 
 
@@ -523,7 +526,8 @@ def _knn_band(feat, refs, refs_fm, bounds, ref_y, ref_x, p, out, pixels, y0, y1)
 def _knn_rows(feat, refs, bounds, ref_y, ref_x, dots, p, out, first, end):
     """knn_table's pixels first <= y * w + x < end (scan order), written into out.
     dots[y * w + x - first, i]: pixel (y, x)'s dot product with reference i (from a matrix
-    product); bounds: (1 +- _DOT_SLACK) |r_i|^2 (float64 [2, n]).
+    product); bounds: (1 +- _DOT_SLACK) |r_i|^2 (float64 [2, n]); ref_y, ref_x: reference i's
+    row and column.
 
     With a = the pixel's features, reference i's distance d_i (the direct search's sum) lies
     between (1 - S)((1 - D)|a|^2 + lo_i) and (1 + S)((1 + D)|a|^2 + up_i), where up_i, lo_i =
@@ -534,8 +538,7 @@ def _knn_rows(feat, refs, bounds, ref_y, ref_x, dots, p, out, first, end):
     lo0, hi0, lo1, hi1 = p.lo[0], p.hi[0], p.lo[1], p.hi[1]
     k, exclude = p.k, p.exclude
     w, nf = feat.shape[1], feat.shape[2]
-    nx = ref_x.size
-    count = ref_y.size * nx
+    count = ref_y.size
     kept = np.empty(count, np.int64)
     best_d = np.empty(k)
     best_i = np.empty((k, 2), np.int64)
@@ -558,7 +561,7 @@ def _knn_rows(feat, refs, bounds, ref_y, ref_x, dots, p, out, first, end):
         for i in range(count):
             if not low[i] <= limit:
                 continue
-            if abs(ref_y[i // nx] - y) <= exclude and abs(ref_x[i % nx] - x) <= exclude:
+            if abs(ref_y[i] - y) <= exclude and abs(ref_x[i] - x) <= exclude:
                 continue
             kept[n_kept] = i
             n_kept += 1
@@ -570,7 +573,7 @@ def _knn_rows(feat, refs, bounds, ref_y, ref_x, dots, p, out, first, end):
                     j -= 1
                 best_d[j] = u
                 bound = (1.0 + _SQUARE_SLACK) * ((1.0 + _DOT_SLACK) * na + best_d[k - 1])
-                limit = (bound + 2 * _TINY) / (1.0 - _SQUARE_SLACK) - (1.0 - _DOT_SLACK) * na
+                limit = (bound + 2 * _TINY) * _INVERSE - (1.0 - _DOT_SLACK) * na
         for j in range(k):
             best_d[j] = np.inf
             best_i[j, 0] = min(max(y, lo0), hi0)
@@ -591,8 +594,8 @@ def _knn_rows(feat, refs, bounds, ref_y, ref_x, dots, p, out, first, end):
                     best_i[j, 1] = best_i[j - 1, 1]  # see som._update_box
                     j -= 1
                 best_d[j] = d
-                best_i[j, 0] = ref_y[i // nx]
-                best_i[j, 1] = ref_x[i % nx]
+                best_i[j, 0] = ref_y[i]
+                best_i[j, 1] = ref_x[i]
         for j in range(k):
             out[y, x, j, 0] = best_i[j, 0]
             out[y, x, j, 1] = best_i[j, 1]
