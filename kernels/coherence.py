@@ -191,15 +191,16 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice, pha
     not called: each array handed to an inlined function costs atomic reference-count updates
     per call, about half the time of a pass. Other pixels and candidates go to _total_cost.
 
-    A settled pixel is not searched further: on that fast path, with no lattice, an integral
-    box [p.lo, p.hi] and non-negative p.seam and p.guide, every candidate is integral, so one
-    other than the current position breaks every 8-neighbour inside the output when all of
-    them continue the pixel's copy, and its seam term alone, p.seam * that count (or more with
-    a guide), reaches a best cost at or below it and is rejected before any matching: the
-    candidate list, the k-NN look-ups and the random draws are then skipped, and the pixel
-    keeps its position, as the full search would (80-87 % of a pass's pixel visits on
-    cells.png, brick.png and grass_256.png). A pixel whose whole window continues its copy is
-    checked first, without the window's bookkeeping."""
+    A settled pixel is not searched further: on that fast path, with no lattice or one integral
+    lattice (lattice_snap keeps an integral position integral), an integral box [p.lo, p.hi]
+    and non-negative p.seam and p.guide, every candidate is integral, so one other than the
+    current position breaks every 8-neighbour inside the output when all of them continue the
+    pixel's copy, and its seam term alone, p.seam * that count (or more with a guide), reaches
+    a best cost at or below it and is rejected before any matching: the candidate list, the
+    k-NN look-ups and the random draws are then skipped, and the pixel keeps its position, as
+    the full search would (80-87 % of a pass's pixel visits on cells.png, brick.png and
+    grass_256.png). A pixel whose whole window continues its copy is checked first, without
+    the window's bookkeeping."""
     H, W = src.shape[0], src.shape[1]
     h, w, nf = feat.shape
     r = p.radius
@@ -217,8 +218,11 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice, pha
     area8 = np.empty(8)
     # the coherent and k-NN candidates of a pixel, in the order they are costed
     listed = np.empty((8 * (1 + k), 3))  # (row, col, 1 for a neighbour's continuation)
-    # every candidate is integral where the pixel's window is (fast): settling is exact
-    plain = (lattice.rank == 0 and table.shape[0] == 0 and p.seam >= 0.0 and p.guide >= 0.0
+    # every candidate is integral where the pixel's window is (fast): settling is exact. An
+    # integral lattice (identity Jacobian) snaps integral positions to integral ones; a table
+    # of regions' lattices is searched in full
+    plain = ((lattice.rank == 0 or lattice.integral) and table.shape[0] == 0
+             and p.seam >= 0.0 and p.guide >= 0.0
              and p.lo[0] == np.floor(p.lo[0]) and p.lo[1] == np.floor(p.lo[1])
              and p.hi[0] == np.floor(p.hi[0]) and p.hi[1] == np.floor(p.hi[1]))
     for y in range(y0, y1):
@@ -468,67 +472,133 @@ def _refine_rows(src, dst, feat, jac, knn, occ, area, gex, gout, p, lattice, pha
 #   exclude   int64       references within this many pixels of the pixel (both axes) are skipped
 KnnParams = namedtuple("KnnParams", "lo hi k stride exclude")
 
+# knn_table's screen. A matrix product in float32 gives every squared distance |a - r|^2 to
+# within _DOT_SLACK (|a|^2 + |r|^2) (a 16-term float32 dot product's error bound is about a tenth
+# of that), and the direct search's own sum (float32 differences squared, summed in float64) is
+# within _SQUARE_SLACK of the true distance (three roundings of 2^-24, with room to spare).
+_DOT_SLACK = 1e-5
+_SQUARE_SLACK = 1e-6
+_TINY = 1e-30  # below any of these: float32 squares that underflow
+_INVERSE = 1.0 / (1.0 - _SQUARE_SLACK) * (1.0 + 1e-15)  # no smaller than the division
+# one product's size (its rows: pixels): about 1 MB of dot products, in the cache when the
+# kernel reads them, in few enough calls
+_SCREEN_BYTES = 1 << 20
+
 
 def knn_table(feat, p):
     """For every exemplar pixel, the p.k positions (from a grid of step p.stride inside the box
     p.lo..p.hi) with the nearest appearance features, excluding those within p.exclude pixels.
-    Returns int32[h, w, k, 2]; ties are broken by scan order. p: KnnParams."""
-    out = np.zeros((feat.shape[0], feat.shape[1], p.k, 2), np.int32)
-    run_bands(_knn_rows, feat.shape[0], feat, p, out)
+    Returns int32[h, w, k, 2]; ties are broken by scan order. p: KnnParams.
+
+    Each pixel's distances to all references are first bounded from a matrix product (BLAS);
+    only the references whose bound can reach the k nearest are then summed exactly
+    as a direct search sums them: the same table as the direct search, in a fraction of the
+    time."""
+    h, w, nf = feat.shape
+    out = np.zeros((h, w, p.k, 2), np.int32)
+    ref_y = np.arange(p.lo[0], p.hi[0] + 1, p.stride, dtype=np.int64)
+    ref_x = np.arange(p.lo[1], p.hi[1] + 1, p.stride, dtype=np.int64)
+    feat = np.ascontiguousarray(feat)
+    refs = np.ascontiguousarray(feat[ref_y][:, ref_x].reshape(-1, nf))
+    norms = np.square(refs, dtype=np.float64).sum(axis=1)
+    bounds = np.stack(((1.0 + _DOT_SLACK) * norms, (1.0 - _DOT_SLACK) * norms))
+    pixels = max(1, _SCREEN_BYTES // (4 * max(refs.shape[0], 1)))
+    # features-major for the exact sums, as the direct search holds them
+    # each reference's row and column (scan order), read where a reference is kept
+    grid_y, grid_x = np.meshgrid(ref_y, ref_x, indexing="ij")
+    run_bands(_knn_band, h, feat, refs, np.ascontiguousarray(refs.T), bounds, grid_y.ravel(),
+              grid_x.ravel(), p, out, pixels)
     return out
 
 
+def _knn_band(feat, refs, refs_fm, bounds, ref_y, ref_x, p, out, pixels, y0, y1):
+    """knn_table's rows y0 <= y < y1: a product for `pixels` pixels (in scan order) at a time,
+    then the kernel."""
+    w, nf = feat.shape[1], feat.shape[2]
+    flat = feat.reshape(-1, nf)
+    for first in range(y0 * w, y1 * w, pixels):
+        end = min(first + pixels, y1 * w)
+        _knn_rows(feat, refs_fm, bounds, ref_y, ref_x, flat[first:end] @ refs.T, p, out, first,
+                  end)
+
+
 @njit(cache=True, nogil=True)
-def _knn_rows(feat, p, out, y0, y1):
-    """knn_table's rows y0 <= y < y1, written into out."""
+def _knn_rows(feat, refs, bounds, ref_y, ref_x, dots, p, out, first, end):
+    """knn_table's pixels first <= y * w + x < end (scan order), written into out.
+    dots[y * w + x - first, i]: pixel (y, x)'s dot product with reference i (from a matrix
+    product); bounds: (1 +- _DOT_SLACK) |r_i|^2 (float64 [2, n]); ref_y, ref_x: reference i's
+    row and column.
+
+    With a = the pixel's features, reference i's distance d_i (the direct search's sum) lies
+    between (1 - S)((1 - D)|a|^2 + lo_i) and (1 + S)((1 + D)|a|^2 + up_i), where up_i, lo_i =
+    (1 +- D)|r_i|^2 - 2 a.r_i (D: _DOT_SLACK, S: _SQUARE_SLACK). A reference whose lower bound
+    exceeds the k-th smallest upper bound (of the references not excluded) is beaten by k
+    others: only the rest are summed exactly, in scan order, into the same insertion as the
+    direct search (ties keep the earlier reference)."""
     lo0, hi0, lo1, hi1 = p.lo[0], p.hi[0], p.lo[1], p.hi[1]
-    k, stride, exclude = p.k, p.stride, p.exclude
-    h, w, nf = feat.shape
-    ref_y = np.arange(lo0, hi0 + 1, stride)
-    ref_x = np.arange(lo1, hi1 + 1, stride)
-    nx = ref_x.size
-    count = ref_y.size * nx
-    # the references' features feature-major, so that one pixel's distances to all of them
-    # are computed by a loop over references that vectorises
-    refs = np.empty((nf, count), np.float32)
-    for i in range(count):
-        for f in range(nf):
-            refs[f, i] = feat[ref_y[i // nx], ref_x[i % nx], f]
-    dist = np.empty(count)
+    k, exclude = p.k, p.exclude
+    w, nf = feat.shape[1], feat.shape[2]
+    count = ref_y.size
+    kept = np.empty(count, np.int64)
     best_d = np.empty(k)
     best_i = np.empty((k, 2), np.int64)
-    for y in range(y0, y1):
-        for x in range(w):
-            dist[:] = 0.0
-            for f in range(nf):  # features in order: the same sums as one pixel at a time
-                a = feat[y, x, f]
-                row = refs[f]
-                for i in range(count):
-                    diff = a - row[i]
-                    dist[i] += diff * diff
-            for j in range(k):
-                best_d[j] = np.inf
-                best_i[j, 0] = min(max(y, lo0), hi0)
-                best_i[j, 1] = min(max(x, lo1), hi1)
-            for i in range(count):  # in scan order, so ties keep the earlier reference
-                d = dist[i]
-                if d < best_d[k - 1]:
-                    ry = ref_y[i // nx]
-                    rx = ref_x[i % nx]
-                    if abs(ry - y) <= exclude and abs(rx - x) <= exclude:
-                        continue
-                    j = k - 1
-                    while j > 0 and best_d[j - 1] > d:
-                        best_d[j] = best_d[j - 1]
-                        best_i[j, 0] = best_i[j - 1, 0]  # not best_i[j] = best_i[j - 1]:
-                        best_i[j, 1] = best_i[j - 1, 1]  # see som._update_box
-                        j -= 1
-                    best_d[j] = d
-                    best_i[j, 0] = ry
-                    best_i[j, 1] = rx
-            for j in range(k):
-                out[y, x, j, 0] = best_i[j, 0]
-                out[y, x, j, 1] = best_i[j, 1]
+    low = np.empty(count)
+    for n in range(first, end):
+        y = n // w
+        x = n - y * w
+        row = dots[n - first]
+        for i in range(count):  # apart from the pass below: a loop that vectorises
+            low[i] = bounds[1, i] - 2.0 * np.float64(row[i])
+        na = 0.0
+        for f in range(nf):
+            na += np.float64(feat[y, x, f]) * np.float64(feat[y, x, f])
+        for j in range(k):
+            best_d[j] = np.inf
+        # one pass: the k smallest upper bounds so far, and every reference whose lower
+        # bound is within the k-th of them at its turn (the k-th only falls: a superset)
+        limit = np.inf
+        n_kept = 0
+        for i in range(count):
+            if not low[i] <= limit:
+                continue
+            if abs(ref_y[i] - y) <= exclude and abs(ref_x[i] - x) <= exclude:
+                continue
+            kept[n_kept] = i
+            n_kept += 1
+            u = bounds[0, i] - 2.0 * np.float64(row[i])
+            if u < best_d[k - 1]:
+                j = k - 1
+                while j > 0 and best_d[j - 1] > u:
+                    best_d[j] = best_d[j - 1]
+                    j -= 1
+                best_d[j] = u
+                bound = (1.0 + _SQUARE_SLACK) * ((1.0 + _DOT_SLACK) * na + best_d[k - 1])
+                limit = (bound + 2 * _TINY) * _INVERSE - (1.0 - _DOT_SLACK) * na
+        for j in range(k):
+            best_d[j] = np.inf
+            best_i[j, 0] = min(max(y, lo0), hi0)
+            best_i[j, 1] = min(max(x, lo1), hi1)
+        for m in range(n_kept):  # in scan order, so ties keep the earlier reference
+            i = kept[m]
+            if not low[i] <= limit:
+                continue
+            d = 0.0
+            for f in range(nf):  # features in order: the direct search's sums
+                diff = feat[y, x, f] - refs[f, i]
+                d += diff * diff
+            if d < best_d[k - 1]:
+                j = k - 1
+                while j > 0 and best_d[j - 1] > d:
+                    best_d[j] = best_d[j - 1]
+                    best_i[j, 0] = best_i[j - 1, 0]  # not best_i[j] = best_i[j - 1]:
+                    best_i[j, 1] = best_i[j - 1, 1]  # see som._update_box
+                    j -= 1
+                best_d[j] = d
+                best_i[j, 0] = ref_y[i]
+                best_i[j, 1] = ref_x[i]
+        for j in range(k):
+            out[y, x, j, 0] = best_i[j, 0]
+            out[y, x, j, 1] = best_i[j, 1]
     return out
 
 

@@ -302,20 +302,86 @@ def _seam_part(target, merges, sy, sx, seam):
     return total
 
 
+# _best_shift's screen: a shift's matching terms summed in float32, each term's features in any
+# order (a loop that vectorises), are within 2e-6 of its exact float64 sum (about twenty
+# roundings of 2^-24 per term, every term >= 0): _SCREEN_SLACK leaves room to spare, and
+# _ROUNDING covers the float64 sums' own roundings
+_SCREEN_SLACK = 1e-5
+_ROUNDING = 1e-9
+_UNDERFLOW = 1e-25  # float32 squares too small to represent, all terms together
+
+
+@njit(cache=True, fastmath={"reassoc", "contract", "nsz", "arcp"})
+def _screen_terms(fixed, n, feat, at, n_live, totals):
+    """Adds |fixed[n] - feat[at[k]]|^2 (float32, in whatever order vectorises: the screen's
+    terms) to totals[k, 1] for each of the first n_live shifts."""
+    for k in range(n_live):
+        y, x = at[k, 0], at[k, 1]
+        total = np.float32(0.0)
+        for f in range(feat.shape[2]):
+            diff = fixed[n, f] - feat[y, x, f]
+            total += diff * diff
+        totals[k, 1] += np.float64(total)
+
+
+@njit(cache=True, inline="always")
+def _exact_cost(feat, fixed, base, sy, sx, start, limit, fetched):
+    """`start` plus the matching terms of shift (sy, sx), summed term by term and feature by
+    feature in float64 (_shift_cost's sums); stops once the sum reaches `limit`."""
+    h, w, nf = feat.shape
+    total = start
+    for n in range(fixed.shape[0]):
+        by, bx = base[n, 0], base[n, 1]
+        if by == np.floor(by) and bx == np.floor(bx):  # integer shifts: sample's fetch
+            y0 = min(max(int(by) + sy, 0), h - 1)
+            x0 = min(max(int(bx) + sx, 0), w - 1)
+            for f in range(nf):
+                diff = np.float64(fixed[n, f]) - np.float64(feat[y0, x0, f])
+                total += diff * diff
+        else:
+            sample(feat, by + sy, bx + sx, fetched)
+            for f in range(nf):
+                diff = fixed[n, f] - fetched[f]
+                total += diff * diff
+        if total >= limit:
+            break
+    return total
+
+
 @njit(cache=True, inline="always")
 def _best_shift(feat, fixed, base, target, merges, shifts, lo_pos, hi_pos, p, live, totals,
-                fetched):
+                fetched, at):
     """Index into shifts of the cheapest shift that keeps the region's positions (extent lo_pos
     to hi_pos) inside [p.lo, p.hi]; 0 (no shift) unless another is strictly cheaper.
 
-    Every shift's cost is summed term by term in _shift_cost's order (the same float64 sums),
-    but the shifts advance together, one border term at a time: their sums are independent
-    chains the processor overlaps, where one shift after another waits on each addition. A
-    shift drops out once its sum reaches the unshifted cost, which it then cannot beat; the
-    smallest index wins a tie, as when the shifts are tried one by one. `live`, `totals` and
-    `fetched` are scratch arrays (a shift each; the feature count)."""
-    zero = np.int64(0)  # not a literal 0: that would compile _shift_cost a second time
-    unshifted = _shift_cost(feat, fixed, base, target, merges, zero, zero, p.seam, np.inf)
+    Every shift's cost is its seam terms plus its matching terms, summed in _shift_cost's order
+    (float64). A screen first bounds them cheaply (the matching terms in float32,
+    _screen_terms): the unshifted cost from above, then every shift's from below, all shifts
+    together, one border term at a time, a shift dropping out once its bound reaches the
+    unshifted one (it then cannot be cheaper). Only the shifts left (most regions have none)
+    are summed exactly, with the unshifted cost, in shift order, the smallest index winning a
+    tie, as when the shifts are tried one by one. `live`, `totals`, `fetched` and `at` are
+    scratch arrays (a shift each; two columns a shift; the feature count; two columns a
+    shift)."""
+    h, w, nf = feat.shape
+    # the screen's bound on the unshifted cost: the seam terms, then the matching terms
+    unshifted = 0.0
+    for m in range(target.shape[0]):  # as _shift_cost's for no shift (the region stays)
+        if abs(target[m, 0]) > 1e-3 or abs(target[m, 1]) > 1e-3:
+            unshifted += p.seam
+    totals[0, 1] = 0.0
+    for n in range(fixed.shape[0]):
+        by, bx = base[n, 0], base[n, 1]
+        if by == np.floor(by) and bx == np.floor(bx):
+            at[0, 0] = min(max(int(by), 0), h - 1)
+            at[0, 1] = min(max(int(bx), 0), w - 1)
+            _screen_terms(fixed, n, feat, at, 1, totals)
+        else:
+            sample(feat, by, bx, fetched)
+            for f in range(nf):
+                diff = fixed[n, f] - fetched[f]
+                totals[0, 1] += diff * diff
+    most = (unshifted + (1.0 + _SCREEN_SLACK) * totals[0, 1] + _UNDERFLOW) * (1.0 + _ROUNDING)
     n_live = 0
     for j in range(1, shifts.shape[0]):
         sy, sx = shifts[j, 0], shifts[j, 1]
@@ -325,43 +391,49 @@ def _best_shift(feat, fixed, base, target, merges, shifts, lo_pos, hi_pos, p, li
         if p.lattice.rank != 0 and not lattice_shift_ok(sy, sx, p.lattice):
             continue
         total = _seam_part(target, merges, sy, sx, p.seam)
-        if total < unshifted:
+        if total < most:
             live[n_live] = j
-            totals[n_live] = total
+            totals[n_live, 0] = total  # the seam terms
+            totals[n_live, 1] = 0.0  # the screen's matching sum
             n_live += 1
-    h, w, nf = feat.shape
     n = 0
     while n_live > 0 and n < fixed.shape[0]:
         by, bx = base[n, 0], base[n, 1]
         exact = by == np.floor(by) and bx == np.floor(bx)  # integer shifts: sample's fetch
-        for k in range(n_live):
-            sy, sx = shifts[live[k], 0], shifts[live[k], 1]
-            total = totals[k]
-            if exact:
-                y0 = min(max(int(by) + sy, 0), h - 1)
-                x0 = min(max(int(bx) + sx, 0), w - 1)
-                for f in range(nf):
-                    diff = np.float64(fixed[n, f]) - np.float64(feat[y0, x0, f])
-                    total += diff * diff
-            else:
-                sample(feat, by + sy, bx + sx, fetched)
+        if exact:
+            for k in range(n_live):
+                at[k, 0] = min(max(int(by) + shifts[live[k], 0], 0), h - 1)
+                at[k, 1] = min(max(int(bx) + shifts[live[k], 1], 0), w - 1)
+            _screen_terms(fixed, n, feat, at, n_live, totals)
+        else:
+            for k in range(n_live):
+                sample(feat, by + shifts[live[k], 0], bx + shifts[live[k], 1], fetched)
+                term = 0.0
                 for f in range(nf):
                     diff = fixed[n, f] - fetched[f]
-                    total += diff * diff
-            totals[k] = total
+                    term += diff * diff
+                totals[k, 1] += term
         kept = 0
         for k in range(n_live):  # in order: the earlier of two equal shifts stays first
-            if totals[k] < unshifted:
+            least = ((totals[k, 0] + (1.0 - _SCREEN_SLACK) * totals[k, 1] - _UNDERFLOW)
+                     * (1.0 - _ROUNDING))
+            if least < most:
                 live[kept] = live[k]
-                totals[kept] = totals[k]
+                totals[kept, 0] = totals[k, 0]
+                totals[kept, 1] = totals[k, 1]
                 kept += 1
         n_live = kept
         n += 1
+    if n_live == 0:
+        return 0
+    zero = np.int64(0)  # not a literal 0: that would compile _shift_cost a second time
     best = 0
-    best_cost = unshifted
+    best_cost = _shift_cost(feat, fixed, base, target, merges, zero, zero, p.seam, np.inf)
     for k in range(n_live):
-        if totals[k] < best_cost:
-            best, best_cost = live[k], totals[k]
+        sy, sx = shifts[live[k], 0], shifts[live[k], 1]
+        total = _exact_cost(feat, fixed, base, sy, sx, totals[k, 0], best_cost, fetched)
+        if total < best_cost:
+            best, best_cost = live[k], total
     return best
 
 
@@ -425,15 +497,16 @@ def align_regions(pos, feat, jac, p):
     shifts = _shifts_by_length(p.reach)
     terms = _scratch(longest, p.radius, feat.shape[2])
     live = np.empty(shifts.shape[0], np.int64)
-    totals = np.empty(shifts.shape[0])
+    totals = np.empty((shifts.shape[0], 2))
     fetched = np.empty(feat.shape[2])
+    at = np.empty((shifts.shape[0], 2), np.int64)
     for i in range(starts.shape[0] - 1):
         region = regions[starts[i]]
         border = pixels[starts[i]:starts[i + 1]]
         fixed, base, target, merges, others = _border_terms(pos, labels, group, area, feat, jac,
                                                             border, region, p, terms)
         j = _best_shift(feat, fixed, base, target, merges, shifts, lo_pos[region],
-                        hi_pos[region], p, live, totals, fetched)
+                        hi_pos[region], p, live, totals, fetched, at)
         if j == 0:
             continue
         sy, sx = shifts[j, 0], shifts[j, 1]
