@@ -208,6 +208,8 @@ def test_a_particle_filled_from_two_exemplar_cells_takes_one_cells_colours():
                                                                        split(matched, True))
     for r in (0, 1):
         assert np.abs(matched[regions == r].mean(0) - own[r]).max() < 0.02
+    # within the exemplar's colours, which the rotated axes alone would leave
+    assert (matched >= image.min((0, 1))).all() and (matched <= image.max((0, 1))).all()
 
 
 def test_layered_exemplar_keeps_its_spacing(wood):

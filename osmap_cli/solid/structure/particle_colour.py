@@ -63,7 +63,9 @@ def match_particles(voxels: np.ndarray, images, readers, regions: np.ndarray,
     regions int (Z, Y, X): the particle of every voxel (-1: matrix); targets (R, C): each
     particle's source profile's mean colour (the source is the exemplar profile of that mean);
     share (Z, Y, X): the particle's share of each voxel (antialiased rims move in proportion).
-    Small particles and small sources move partly (MIN_VOXELS, MIN_PIXELS)."""
+    Small particles and small sources move partly (MIN_VOXELS, MIN_PIXELS). The result stays
+    within the exemplars' range per channel: a distribution specified along rotated axes can
+    reach colours outside it (below black), which an image file would clip."""
     flat = regions.ravel()
     keep = np.flatnonzero(flat >= 0)
     if not len(keep) or not len(targets):
@@ -94,4 +96,6 @@ def match_particles(voxels: np.ndarray, images, readers, regions: np.ndarray,
     back = np.einsum("nd,ncd->nc", mapped, axes[src]) + means[src]
     out = vals.astype(np.float64).copy()
     out[keep] += weight[:, None] * (back - out[keep])
+    pixels = np.concatenate([im.reshape(-1, im.shape[-1]) for im in images])
+    out = np.clip(out, pixels.min(0), pixels.max(0))
     return out.reshape(voxels.shape).astype(np.float32)
