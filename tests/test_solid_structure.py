@@ -150,6 +150,9 @@ def test_particle_exemplar_keeps_its_profile_sizes_and_shapes(cells64):
     # the analysis' scale): 0.08, 0.21 and 0.11
     assert max(errors["fraction"], errors["diameter"]) < 0.06, errors
     assert report["errors"]["diagonal"]["fraction"] < 0.06, report["errors"]["diagonal"]
+    # every voxel a colour within the exemplar's range (the detail on a dark cell border went
+    # below black, which an image file clips and the float volume kept)
+    assert (volume >= cells64.min((0, 1))).all() and (volume <= cells64.max((0, 1))).all()
 
 
 def test_the_fit_aims_small_only_for_exemplars_read_enlarged():

@@ -99,9 +99,11 @@ def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
     voxels = add_detail(voxels, source, found, built, task.exemplars(0), task.ex_of_axis,
                         options.fill.detail, task.seed, task.tileable, options.fill.vein_detail,
                         options.fill.vein_grain)
+    pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])
+    # the detail added to a colour near the exemplar's darkest or lightest leaves its range
+    voxels = np.clip(voxels, pixels.min(0), pixels.max(0))
     # the per-phase matching moves the low-pass only; this one gives back the exemplar's
     # extreme colours that the optimisation's averaging loses
-    pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])
     voxels = match_quantiles(voxels, pixels, options.final_histogram)
     seconds = time.perf_counter() - started
     report = (*found.report(), f"structure step {structure_seconds:.1f} s of "
