@@ -23,7 +23,7 @@ from osmap_cli.solid.structure.fill import match_phases, match_regions
 from osmap_cli.solid.structure.layers import ring_centre
 from osmap_cli.solid.structure.meter import diagonal_cuts, profile_meter
 from osmap_cli.solid.structure.method import build_structure, plan
-from osmap_cli.solid.structure.particle_colour import match_particles, source_distributions
+from osmap_cli.solid.structure.particle_colour import match_particles
 from osmap_cli.solid.structure.profiles import ProfileStats
 from osmap_cli.solid.structure.segment import Segmenter, lab
 from osmap_cli.solid.volumeio import read_volume
@@ -182,7 +182,8 @@ def test_a_particle_filled_from_two_exemplar_cells_takes_one_cells_colours():
         image[y:y + 14, x:x + 14] = colours[k] + shade
     centres = lab(np.array([[[0.08] * 3, colours.mean(0)]], np.float32))[0]
     reader = Reader(Segmenter(centres), matrix=(0,))
-    means, _, _, sizes = source_distributions([image], [reader])
+    spreads = pt.sources_from(image, reader.working_mask(image), None).spreads
+    means, sizes = spreads.means, spreads.pixels
     assert len(means) == 16 and sizes.min() > 150  # the 14 x 14 cells, their rims read
     # two particles (z halves), each filled half from its own source, half from another cell
     regions = np.repeat(np.arange(2), 8)[:, None, None] * np.ones((16, 16, 16), np.int64)
@@ -206,7 +207,8 @@ def test_a_particle_filled_from_two_exemplar_cells_takes_one_cells_colours():
     assert split(moved) > 0.25 and split(moved, hue=True) > 0.15
     # the source's distribution along its colour axes: one hue, the halves apart only along
     # the source's shading (a grey ramp of 0.16): measured 0.13, hue 0.03
-    matched = match_particles(voxels, [image], [reader], regions, own, share)
+    matched = match_particles(voxels, regions, np.array([0, 5]), spreads, share,
+                              image.min((0, 1)), image.max((0, 1)))
     assert split(matched) < 0.16 and split(matched, hue=True) < 0.06, (split(matched),
                                                                        split(matched, True))
     for r in (0, 1):

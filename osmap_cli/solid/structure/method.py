@@ -29,7 +29,7 @@ from osmap_cli.solid.structure.fill import (
     noise_detail,
     residual_detail,
 )
-from osmap_cli.solid.structure.particle_colour import match_particles
+from osmap_cli.solid.structure.particle_colour import ColourSpreads, match_particles
 from osmap_cli.solid.structure.profiles import profile_ids
 from osmap_cli.solid.structure.segment import Segmenter, gaussian_blur, smooth_volume
 
@@ -192,7 +192,8 @@ def _plan_particles(result: Plan, analyses, images, seed, wrap, probe_cap=None) 
         np.concatenate([s.diameters for s in sources]),
         np.concatenate([s.colours for s in sources]),
         pt.pooled([s.target for s in sources]) if len(sources) > 1 else sources[0].target,
-        float(np.mean([s.gap for s in sources])))
+        float(np.mean([s.gap for s in sources])),
+        ColourSpreads.pooled([s.spreads for s in sources]))
     params, _ = pt.fit(pooled, seed, factor=factor, cap=probe_cap)
     result.model = (pooled, params, factor)
     result.ex_labels = [m.astype(np.int64) for m in masks]
@@ -215,13 +216,15 @@ class Built:
     """A volume's structure: labels int64 (Z, Y, X) (the phase of every voxel); identity float32
     (Z, Y, X, I) (the guide's identity channels); coverage float32 (Z, Y, X, K): every phase's
     share of each voxel (antialiased boundaries); regions int64 (Z, Y, X) with their colours
-    (R, C) when the phases hold regions of one colour each (particles), else None."""
+    (R, C) and source profiles (R,) when the phases hold regions of one colour each
+    (particles), else None."""
 
     labels: np.ndarray
     identity: np.ndarray
     coverage: np.ndarray
     regions: np.ndarray | None = None
     region_colours: np.ndarray | None = None
+    region_sources: np.ndarray | None = None  # each region's source profile (particles)
 
 
 def build_structure(found: Plan, shape, seed: int, wrap: bool) -> Built:
@@ -236,7 +239,7 @@ def build_structure(found: Plan, shape, seed: int, wrap: bool) -> Built:
         share = np.clip(0.5 + built.sdf, 0.0, 1.0)  # the particle's share of the voxel
         return Built(inside.astype(np.int64), identity.astype(np.float32),
                      np.stack([1.0 - share, share], -1).astype(np.float32),
-                     built.owner.astype(np.int64), colours)
+                     built.owner.astype(np.int64), colours, built.source)
     k = len(found.colours)
     if found.kind in ("layers", "veins"):
         bands = (ly.layer_bands if found.kind == "layers" else sh.sheet_bands)(
@@ -274,9 +277,9 @@ def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np
     if built.regions is not None:
         matched = match_regions(matched, built.regions, built.region_colours,
                                 built.coverage[..., 1], pixels.min(0), pixels.max(0))
-        matched = match_particles(matched, found.images, [a.reader for a in found.analyses],
-                                  built.regions, built.region_colours, built.coverage[..., 1],
-                                  wrap)
+        matched = match_particles(matched, built.regions, built.region_sources,
+                                  found.model[0].spreads, built.coverage[..., 1],
+                                  pixels.min(0), pixels.max(0))
     return (voxels + strength * (matched - voxels)).astype(np.float32)
 
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from osmap_cli.solid.structure.particle_colour import ColourSpreads, colour_spreads
 from osmap_cli.solid.structure.profiles import ProfileStats, profile_stats
 from osmap_cli.solid.structure.slices import DIAGONALS, axis_slices, oblique_slice
 from osmap_kernels.structure import place_spheres, render_particles
@@ -61,6 +62,7 @@ class ParticleSources:
     colours: np.ndarray
     target: ProfileStats
     gap: float
+    spreads: ColourSpreads | None = None  # each profile's colour distribution
 
 
 @dataclass(frozen=True)
@@ -111,7 +113,8 @@ def sources_from(image: np.ndarray, mask: np.ndarray, stats: ProfileStats,
     dist = np.sqrt(squared_distance(mask, wrap))
     between = (~mask) & (dist <= 4)
     gap = float(2 * dist[between].mean()) if between.any() else 1.5
-    return ParticleSources(2 * np.sqrt(area[big] / np.pi), colours[big], stats, gap)
+    return ParticleSources(2 * np.sqrt(area[big] / np.pi), colours[big], stats, gap,
+                           colour_spreads(image, ids, count).take(big))
 
 
 def _rotations(rng, n):
