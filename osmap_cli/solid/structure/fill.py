@@ -281,8 +281,7 @@ def residual_detail(voxels: np.ndarray, source: np.ndarray, images, ex_of_axis, 
     the exemplar."""
     if strength <= 0:
         return voxels
-    highs = [np.asarray(im, np.float32) - gaussian_blur(im, DETAIL_SIGMA, wrap).astype(np.float32)
-             for im in images]
+    highs = _high_passes(images, wrap)
     ex = np.asarray(ex_of_axis)[source[..., 0]]
     detail = np.zeros_like(voxels)
     for e, high in enumerate(highs):
@@ -296,6 +295,12 @@ def residual_detail(voxels: np.ndarray, source: np.ndarray, images, ex_of_axis, 
     used = sorted(set(int(e) for e in ex_of_axis))
     gain = _detail_gain(own, added, highs, used, labels, ex_labels, strength)
     return (voxels + gain[..., None] * detail).astype(np.float32)
+
+
+def _high_passes(images, wrap: bool) -> list:
+    """Every image less its Gaussian blur of DETAIL_SIGMA (float32): the residual detail."""
+    return [np.asarray(im, np.float32) - gaussian_blur(im, DETAIL_SIGMA, wrap).astype(np.float32)
+            for im in images]
 
 
 def _detail_gain(own, added, highs, used, labels, ex_labels, strength: float) -> np.ndarray:
@@ -374,8 +379,7 @@ def noise_detail(voxels: np.ndarray, images, ex_of_axis, labels, ex_labels, stre
     streaks run along the veins as the exemplar's do; `grain` > 0 sets that stretch."""
     if strength <= 0:
         return voxels
-    highs = [np.asarray(im, np.float32) - gaussian_blur(im, DETAIL_SIGMA, wrap).astype(np.float32)
-             for im in images]
+    highs = _high_passes(images, wrap)
     used = sorted(set(int(e) for e in ex_of_axis))
     shape = voxels.shape[:3]
     phases = []
@@ -395,7 +399,8 @@ def noise_detail(voxels: np.ndarray, images, ex_of_axis, labels, ex_labels, stre
     stretch = grain if grain > 0 else 1.0
     if normal is not None and grain <= 0:
         want = float(np.mean([_anisotropy(highs[e], ex_labels[e]) for e in used]))
-        freqs, power = slice_matched_spectrum(np.mean([p[1][1] for p in phases], 0))
+        freqs = phases[0][1][0]  # every phase's spectrum is on the same bins
+        power = np.mean([spectrum[1] for _, spectrum, _ in phases], 0)
         stretch = min(STRETCHES, key=lambda s: abs(face_anisotropy(freqs, power, normal, s)
                                                    - want))
     detail = np.zeros(voxels.shape, np.float32)
