@@ -244,6 +244,7 @@ def main(argv=None) -> int:
     ap.add_argument("--sides", default="64,128")
     ap.add_argument("--methods", default="structure,osmap,kopf,legacy")
     ap.add_argument("--names", default=",".join(NAMES))
+    ap.add_argument("--seed", type=int, default=1, help="every volume's --seed (default 1)")
     ap.add_argument("--sheet", type=Path, default=None)
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--markdown", type=Path, default=None,
@@ -269,7 +270,7 @@ def main(argv=None) -> int:
     methods = args.methods.split(",")
     print(HEADER, flush=True)
     rows = run(args.names.split(","), [int(s) for s in args.sides.split(",")], methods,
-               args.sheet, changes=changes, log=lambda line: print(line, flush=True), fill=fill)
+               args.sheet, seed=args.seed, changes=changes, log=lambda line: print(line, flush=True), fill=fill)
     text = tables(rows, methods)
     print(text[text.index(BARS) - 1:])
     if args.markdown is not None:
