@@ -26,10 +26,11 @@ import numpy as np
 
 from osmap_cli.solid.structure import particles as pt
 from osmap_cli.solid.structure.analysis import reads_as_cells
+from osmap_kernels.cells import power_cells
 from osmap_kernels.structure import place_spheres
 
 BLOCK = 8  # voxels: the labelling works block by block, on each block's nearest seeds
-CANDIDATES = 48  # seeds examined per block (the bound is checked; more are taken if needed)
+CANDIDATES = 24  # seeds examined per block (the bound is checked; all are taken if needed)
 HARD_CORE = 0.30  # packing fraction of the seeds' exclusion spheres (random addition jams
 #                   near 0.38; the attempts below reach about this)
 PLACE_ATTEMPTS = 64
@@ -51,68 +52,45 @@ class CellParams:
     aspect: float = 1.0
 
 
-def _nearest_two(points, centres, weights, shape, wrap):
-    """For points (M, 3): the seed of least power distance, the runner-up, and the distance
-    to the plane between them (power distances p1 <= p2: (p2 - p1) / (2 |c2 - c1|))."""
-    d = points[:, None, :] - centres[None, :, :]
-    if wrap:
-        size = np.asarray(shape, np.float64)
-        d -= size * np.round(d / size)
-    power = (d * d).sum(-1) - weights[None, :]
-    two = np.argpartition(power, 1, axis=1)[:, :2] if power.shape[1] > 1 else \
-        np.zeros((len(points), 2), np.int64)
-    rows = np.arange(len(points))
-    p = power[rows[:, None], two]
-    swap = p[:, 1] < p[:, 0]
-    two[swap] = two[swap][:, ::-1]
-    p[swap] = p[swap][:, ::-1]
-    sep = d[rows, two[:, 0]] - d[rows, two[:, 1]]  # c2 - c1
-    gap = np.sqrt((sep * sep).sum(-1))
-    wall = (p[:, 1] - p[:, 0]) / np.maximum(2.0 * gap, 1e-9)
-    return two[:, 0], two[:, 1], wall
-
-
 def laguerre(shape, centres, weights, wrap: bool, step: float = 1.0):
     """(owner int32 (Z, Y, X): each voxel's cell, wall float32: the voxel centre's distance to
     the nearest wall) of the power diagram of `centres` (N, 3) (z, y, x) with `weights` (N,),
-    periodic with wrap; `step`: voxel size (the grid spans shape / step voxels a side)."""
+    periodic with wrap; `step`: voxel size (the grid spans shape / step voxels a side).
+    Worked block by block, each block on the seeds nearest its centre: CANDIDATES of them,
+    or all when one left out could be nearer to a voxel of the block than the second."""
     grid = tuple(int(round(s / step)) for s in shape)
+    n = len(centres)
+    size = np.asarray(shape, np.float64)
+    nb = [-(-g // BLOCK) for g in grid]
+    corners = np.stack(np.meshgrid(*[np.arange(b) * BLOCK for b in nb], indexing="ij"),
+                       -1).reshape(-1, 3)
+    mids = (corners + 0.5 * BLOCK) * step
+    d = centres[None, :, :] - mids[:, None, :]
+    if wrap:
+        d -= size * np.round(d / size)
+    dist = np.sqrt((d * d).sum(-1))
+    order = np.argsort(dist, axis=1, kind="stable")
+    near = np.take_along_axis(dist, order, 1)
+    half = 0.5 * BLOCK * step * math.sqrt(3.0)  # a block's half diagonal
+    wmax = float(weights.max() - weights.min())
+    # a seed left out is farther from every voxel of the block than the second nearest
+    # taken one is from any of them (power weights widen the bound)
+    reach = np.sqrt(near[:, min(1, n - 1)] ** 2 + wmax) + 2.0 * half
+    counts = np.empty(len(mids), np.int64)
+    take = min(n, CANDIDATES)
+    left = np.ones(len(mids), bool)
+    while left.any():
+        ok = left & ((near[:, take] >= reach) if take < n else True)
+        counts[ok] = take
+        left &= ~ok
+        take = min(n, 2 * take)
+    candidates = np.ascontiguousarray(order[:, :counts.max()])
     owner = np.empty(grid, np.int32)
     wall = np.empty(grid, np.float32)
-    n = len(centres)
-    k = min(n, CANDIDATES)
-    size = np.asarray(shape, np.float64)
-    axes = [(np.arange(g) + 0.5) * step for g in grid]
-    half = 0.5 * BLOCK * step * math.sqrt(3.0)  # a block's half diagonal
-    wmax = float(weights.max() - weights.min()) if n else 0.0
-    for z0 in range(0, grid[0], BLOCK):
-        for y0 in range(0, grid[1], BLOCK):
-            for x0 in range(0, grid[2], BLOCK):
-                zs, ys, xs = (axes[0][z0:z0 + BLOCK], axes[1][y0:y0 + BLOCK],
-                              axes[2][x0:x0 + BLOCK])
-                pts = np.stack(np.meshgrid(zs, ys, xs, indexing="ij"), -1).reshape(-1, 3)
-                mid = np.array([zs.mean(), ys.mean(), xs.mean()])
-                d = centres - mid
-                if wrap:
-                    d -= size * np.round(d / size)
-                dist = np.sqrt((d * d).sum(-1))
-                take = k
-                while True:
-                    pick = np.argpartition(dist, take - 1)[:take] if take < n else np.arange(n)
-                    if take >= n:
-                        break
-                    # every seed left out is farther from any point of the block than the
-                    # second nearest taken one can be (power weights widen the bound)
-                    inner = np.sort(dist[pick])
-                    outer = np.partition(dist, take)[take]
-                    reach = math.sqrt(inner[1] ** 2 + wmax) + 2.0 * half
-                    if outer >= reach:
-                        break
-                    take = min(n, 2 * take)
-                i1, _, w = _nearest_two(pts, centres[pick], weights[pick], shape, wrap)
-                block = (len(zs), len(ys), len(xs))
-                owner[z0:z0 + BLOCK, y0:y0 + BLOCK, x0:x0 + BLOCK] = pick[i1].reshape(block)
-                wall[z0:z0 + BLOCK, y0:y0 + BLOCK, x0:x0 + BLOCK] = w.reshape(block)
+    power_cells(corners.astype(np.int64), BLOCK, float(step), np.array(grid, np.int64),
+                np.ascontiguousarray(centres, np.float64),
+                np.ascontiguousarray(weights, np.float64), candidates, counts, size, wrap,
+                owner, wall)
     return owner, wall
 
 
