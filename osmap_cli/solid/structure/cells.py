@@ -130,18 +130,18 @@ def seeds(shape, count: int, params: CellParams, seed: int, wrap: bool):
 
 
 def source_draw(sources: pt.ParticleSources, count: int, rng) -> np.ndarray:
-    """Each cell's source profile: the cells being of like volumes, a source's share of the
-    cells is its share of the exemplar's particle area; every source appears its expected
-    number of times (rounded down), the rest drawn by the remainders, in random order."""
+    """Each cell's source profile. The cells being of like volumes, a source's share of the
+    cells is its share of the exemplar's particle area: every source appears its expected
+    number of times (rounded down; the rest drawn by the remainders), in random order."""
     area = sources.diameters ** 2
     expected = area / area.sum() * count
     whole = np.floor(expected).astype(np.int64)
     rest = count - int(whole.sum())
     extra = rng.choice(len(area), rest, replace=False,
                        p=(expected - whole) / (expected - whole).sum()) if rest > 0 else []
-    pick = np.concatenate([np.repeat(np.arange(len(area)), whole),
-                           np.asarray(extra, np.int64)])
-    return rng.permutation(pick)
+    draws = np.concatenate([np.repeat(np.arange(len(area)), whole),
+                            np.asarray(extra, np.int64)])
+    return rng.permutation(draws)
 
 
 def build(shape, params: CellParams, sources: pt.ParticleSources, seed: int, wrap: bool,
