@@ -57,7 +57,7 @@ def test_the_power_diagram_is_exact_and_wraps():
 def test_cells_are_read_as_cells_and_other_particles_are_not(cells64):
     found = analyse(cells64)
     assert found.kind == "particles" and reads_as_cells(found)
-    assert "packed cells" in found.report()[0]
+    assert "packed cells" in found.report()[0] and found.summary()["particles"]["packed_cells"]
     # irregular packed stones: round blobs of three sizes on dark gaps (solidity, spread)
     rng = np.random.default_rng(1)
     image = np.full((128, 128, 3), 0.15, np.float32)

@@ -44,6 +44,7 @@ SHEET_SIGMA = 2.0  # px: the structure tensor's scale giving each pixel's local 
 CELL_FRACTION = 0.6
 CELL_SOLIDITY = 0.86
 CELL_SPREAD = 1.25
+PACKED_CELLS = "packed cells"  # the note that says so
 WORKING_SIDE = 128  # smaller images are analysed enlarged to about this (the thresholds above
 MAX_FACTOR = 4  # are in pixels of this resolution)
 
@@ -181,6 +182,8 @@ class Analysis:
         if self.profiles is not None:
             scaled = self.profiles.scaled(1.0 / self.reader.factor)
             out["particles"] = {k: round(float(v), 4) for k, v in scaled.figures().items()}
+            if PACKED_CELLS in self.notes:
+                out["particles"]["packed_cells"] = True
         return out
 
 
@@ -272,7 +275,7 @@ def analyse(image: np.ndarray, wrap: bool = False, phases: int | None = None) ->
                          **{**common, "colours": _mask_colours(original, mask),
                             "fractions": np.array([1 - mask.mean(), mask.mean()])},
                          profiles=stats)
-        return replace(found, notes=("packed cells",)) if reads_as_cells(found) else found
+        return replace(found, notes=(PACKED_CELLS,)) if reads_as_cells(found) else found
     if _separation(lab(image), labels) >= FIELD_SEPARATION:
         sheetness = sheet_ratio(image, labels)
         return Analysis("veins" if sheetness <= SHEETS else "field", plain, small,
