@@ -189,24 +189,28 @@ def fit(sources: pt.ParticleSources, seed: int, probe: int | None = None, log=No
             probe = min(probe, max(2 * int(cap), pt.MIN_PROBE))
     shape = (probe, probe, probe)
     params = initial_params(sources)
-    best = None
+    rounds = []
     for round_ in range(FIT_ROUNDS):
-        built = build(shape, params, sources, seed + 7919 * round_, True, factor)
-        stats = pt.cut_stats(built.owner >= 0, True)
+        stats = pt.cut_stats(build(shape, params, sources, seed + 7919 * round_, True,
+                                   factor).owner >= 0, True)
         got = stats.figures()
-        error = max(abs(got[k] / tf[k] - 1.0) for k in FITTED if tf[k] > 0)
         if log is not None:
             log(round_, params, got)
-        if best is None or error < best[0]:
-            best = (error, params, stats)
-        if round_ == FIT_ROUNDS - 1:
-            break
-        size_ratio = math.sqrt(tf["d50"] * tf["d90"] / max(got["d50"] * got["d90"], 1e-6))
-        frac_ratio = tf["fraction"] / max(got["fraction"], 1e-6)
-        params = replace(params, density=params.density * pt._step(size_ratio, -2.4),
-                         gap=float(np.clip(params.gap * pt._step(frac_ratio, -1.2),
-                                           pt.MIN_GAP, pt.MAX_GAP)))
-    return best[1], best[2]
+        rounds.append((max(abs(got[k] / tf[k] - 1.0) for k in FITTED if tf[k] > 0), round_,
+                       params, stats))
+        params = _corrected(params, got, tf)
+    _, _, params, stats = min(rounds, key=lambda r: r[:2])
+    return params, stats
+
+
+def _corrected(params: CellParams, got: dict, want: dict) -> CellParams:
+    """The next round's parameters: more cells where the cuts read large, thinner walls where
+    they read too much wall."""
+    size = math.sqrt(want["d50"] * want["d90"] / max(got["d50"] * got["d90"], 1e-6))
+    fraction = want["fraction"] / max(got["fraction"], 1e-6)
+    return replace(params, density=params.density * pt._step(size, -2.4),
+                   gap=float(np.clip(params.gap * pt._step(fraction, -1.2), pt.MIN_GAP,
+                                     pt.MAX_GAP)))
 
 
 def fit_packing(analyses, sources: pt.ParticleSources, seed: int, factor: float = 1.0,
