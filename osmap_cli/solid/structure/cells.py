@@ -203,13 +203,18 @@ def fit(sources: pt.ParticleSources, seed: int, probe: int | None = None, log=No
     return params, stats
 
 
+def _step(ratio: float, power: float) -> float:
+    """A damped multiplicative correction (as the particles' fit takes)."""
+    return float(np.clip(ratio ** power, 1 / pt.MAX_STEP, pt.MAX_STEP))
+
+
 def _corrected(params: CellParams, got: dict, want: dict) -> CellParams:
     """The next round's parameters: more cells where the cuts read large, thinner walls where
     they read too much wall."""
     size = math.sqrt(want["d50"] * want["d90"] / max(got["d50"] * got["d90"], 1e-6))
     fraction = want["fraction"] / max(got["fraction"], 1e-6)
-    return replace(params, density=params.density * pt._step(size, -2.4),
-                   gap=float(np.clip(params.gap * pt._step(fraction, -1.2), pt.MIN_GAP,
+    return replace(params, density=params.density * _step(size, -2.4),
+                   gap=float(np.clip(params.gap * _step(fraction, -1.2), pt.MIN_GAP,
                                      pt.MAX_GAP)))
 
 
