@@ -19,6 +19,7 @@ import numpy as np
 
 from osmap_cli.errors import OsmapError
 from osmap_cli.solid.structure import analysis as an
+from osmap_cli.solid.structure import cells as cl
 from osmap_cli.solid.structure import field as fd
 from osmap_cli.solid.structure import layers as ly
 from osmap_cli.solid.structure import particles as pt
@@ -194,7 +195,7 @@ def _plan_particles(result: Plan, analyses, images, seed, wrap, probe_cap=None) 
         pt.pooled([s.target for s in sources]) if len(sources) > 1 else sources[0].target,
         float(np.mean([s.gap for s in sources])),
         ColourSpreads.pooled([s.spreads for s in sources]))
-    params, _ = pt.fit(pooled, seed, factor=factor, cap=probe_cap)
+    params, _ = cl.fit_packing(analyses, pooled, seed, factor=factor, cap=probe_cap)
     result.model = (pooled, params, factor)
     result.ex_labels = [m.astype(np.int64) for m in masks]
     result.ex_identity = []
@@ -231,7 +232,7 @@ def build_structure(found: Plan, shape, seed: int, wrap: bool) -> Built:
     """The volume's structure (particles: each a region of its source profile's colour)."""
     if found.kind == "particles":
         sources, params, factor = found.model
-        built = pt.build(shape, params, sources, seed, wrap, factor)
+        built = cl.build_packing(shape, params, sources, seed, wrap, factor)
         inside = built.owner >= 0
         colours = sources.colours[built.source]
         identity = np.where(inside[..., None], colours[np.maximum(built.owner, 0)],
