@@ -1,21 +1,22 @@
 """The exemplar's side of each pyramid level (its appearance features and k-NN table) computed
-on a helper thread, one level ahead of the refinement that uses it.
+on a helper thread, ahead of the refinement that uses it.
 
-Both depend on the exemplar's level and its valid box alone, not on the output, so a level's can
-be computed while the main thread trains the OS-Map (the coarsest level) or refines and aligns
-the coarser level. The training and the alignment run on one core: the helper's k-NN bands take
-the other. The same values whichever thread computes them (the k-NN kernel's row bands write
-disjoint rows; the features' BLAS is single-threaded), so the same bytes; with one thread
-(`NUMBA_NUM_THREADS=1`, a cluster worker's share) everything is computed in turn, on the caller's
-thread, when it is taken.
+Both depend on the exemplar's level and its valid box alone, not on the output, so every level's
+is submitted at the start, coarsest first: they are computed while the main thread trains the
+OS-Map (the coarsest level), then refines and aligns the coarser levels. The training and the
+alignment run on one core: the helper's k-NN bands take the other (the finer levels' mostly
+while the training runs, when that core would otherwise wait). The same values whichever thread
+computes them (the k-NN kernel's row bands write disjoint rows; the features' BLAS is
+single-threaded), so the same bytes; with one thread (`NUMBA_NUM_THREADS=1`, a cluster worker's
+share) everything is computed in turn, on the caller's thread, when it is taken.
 
 Right after the coarsest level's, the helper also loads the kernels that the refinement and the
 render call (`load_kernels`), from Numba's cache, while the main thread trains the OS-Map: else
 the main thread loads each at its first call (about 0.05 s of a 256x256 run's wall time).
 
     ahead = LevelsAhead(opts)
-    ahead.submit(level, image, lo, hi)       # as soon as the level's valid box is known
-    ahead.load_kernels()                     # the helper's next task (threaded only)
+    ahead.submit(level, image, lo, hi)       # every level, coarsest first
+    ahead.load_kernels()                     # after the coarsest (threaded only)
     feat, knn = ahead.take(level)            # when its refinement starts
     ahead.close()                            # in a finally: drops what was not taken
 """

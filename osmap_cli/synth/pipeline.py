@@ -95,27 +95,28 @@ def run_levels(loop: LevelLoop, opts: SynthOptions, progress=None):
         jac = loop.jacobian_field(loop.out_shapes[level])
         return (jac, *loop.bounds(level, loop.pyramid[level].shape[:2], jac))
 
-    # the exemplar's features and k-NN table of a level are computed a level ahead (ahead.py)
+    # the exemplar's features and k-NN table of every level are computed ahead, on a helper
+    # thread, while the main thread trains the OS-Map and refines the coarser levels (ahead.py)
     ahead = LevelsAhead(opts)
     try:
-        coarsest = frame(levels - 1)
-        ahead.submit(levels - 1, loop.pyramid[levels - 1], *coarsest[1:])
-        ahead.load_kernels()
-        return _levels(loop, opts, levels, frame, coarsest, ahead, advance)
+        frames = {}
+        for level in range(levels - 1, -1, -1):
+            frames[level] = frame(level)
+            ahead.submit(level, loop.pyramid[level], *frames[level][1:])
+            if level == levels - 1:
+                ahead.load_kernels()
+        return _levels(loop, opts, levels, frames, ahead, advance)
     finally:
         ahead.close()
 
 
-def _levels(loop: LevelLoop, opts: SynthOptions, levels: int, frame, coarsest, ahead, advance):
-    """run_levels' loop over the levels, coarsest first (`coarsest`: its frame, submitted)."""
+def _levels(loop: LevelLoop, opts: SynthOptions, levels: int, frames: dict, ahead, advance):
+    """run_levels' loop over the levels, coarsest first (`frames`: each level's (jacobian field,
+    lo, hi), submitted; each is dropped as its level starts)."""
     pos = constraint = None
-    current = coarsest
     for level in range(levels - 1, -1, -1):
         image = loop.pyramid[level]
-        jac_field, lo, hi = current
-        if level > 0:
-            current = frame(level - 1)
-            ahead.submit(level - 1, loop.pyramid[level - 1], *current[1:])
+        jac_field, lo, hi = frames.pop(level)
         constraint = None if loop.constraint is None else loop.constraint(level, lo, hi)
         if pos is None:
             pos = loop.start(level, lo, hi, constraint)
