@@ -52,13 +52,18 @@ def band_ranges(rows: int, threads: int) -> list[tuple[int, int]]:
     return [(a, b) for a, b in zip(edges, edges[1:]) if b > a]
 
 
+def _always() -> bool:
+    return True
+
+
 @contextlib.contextmanager
-def on_this_thread():
+def on_this_thread(while_=_always):
     """Within it, run_bands called on this thread runs the kernel over all rows itself (one
-    band): for a helper thread's work beside a main thread that computes on one core, which
-    would otherwise share that core with the band threads. The same bytes (see above)."""
-    before = getattr(_local, "inline", False)
-    _local.inline = True
+    band) whenever `while_()` is true at the call: for a helper thread's work beside a main
+    thread that computes on one core, which would otherwise share that core with the band
+    threads. The same bytes (see above)."""
+    before = getattr(_local, "inline", None)
+    _local.inline = while_
     try:
         yield
     finally:
@@ -67,8 +72,9 @@ def on_this_thread():
 
 def run_bands(kernel, rows: int, *args) -> None:
     """kernel(*args, y0, y1) for every band of `rows` rows, on thread_count() threads (one
-    band on the calling thread inside on_this_thread())."""
-    threads = 1 if getattr(_local, "inline", False) else thread_count()
+    band on the calling thread inside on_this_thread(), while its condition holds)."""
+    inline = getattr(_local, "inline", None)
+    threads = 1 if inline is not None and inline() else thread_count()
     bands = band_ranges(rows, threads)
     if len(bands) <= 1:
         for y0, y1 in bands:

@@ -73,6 +73,13 @@ def test_bands_on_this_thread_run_as_one_band_with_the_same_result():
     assert inline.tobytes() == spread.tobytes() == np.arange(40.0).tobytes()
     run_bands(kernel, 40, inline)  # outside it, bands again (as many as before)
     assert len(calls) == 1 + banded
+    training = [True]
+    with on_this_thread(lambda: training[0]):  # only while its condition holds
+        run_bands(kernel, 40, inline)
+        assert len(calls) == 2 + banded
+        training[0] = False
+        run_bands(kernel, 40, inline)
+    assert len(calls) == 2 + 2 * banded
 
 
 def test_work_done_meanwhile_gives_its_result_or_raises_its_error():

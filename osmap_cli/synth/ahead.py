@@ -4,13 +4,13 @@ on a helper thread, ahead of the refinement that uses it.
 Both depend on the exemplar's level and its valid box alone, not on the output, so every level's
 is submitted at the start, coarsest first: they are computed while the main thread trains the
 OS-Map (the coarsest level), then refines and aligns the coarser levels. The training and the
-alignment run on one core; the helper takes the other, its k-NN kernel's row bands run on the
-helper itself (osmap_kernels.bands.on_this_thread): the finer levels' are mostly computed while
-the training runs, when that core would otherwise wait, and the band threads stay free for the
-refinement. The same values whichever thread computes them (the k-NN kernel's row bands write
-disjoint rows; the features' BLAS is single-threaded), so the same bytes; with one thread
-(`NUMBA_NUM_THREADS=1`, a cluster worker's share) everything is computed in turn, on the caller's
-thread, when it is taken.
+alignment run on one core; the helper takes the other: while the OS-Map trains, its k-NN
+kernel's row bands run on the helper itself (osmap_kernels.bands.on_this_thread), one core each,
+and the finer levels' tables are mostly computed then, when that core would otherwise wait;
+afterwards its bands share the band threads with the refinement's. The same values whichever
+thread computes them (the k-NN kernel's row bands write disjoint rows; the features' BLAS is
+single-threaded), so the same bytes; with one thread (`NUMBA_NUM_THREADS=1`, a cluster worker's
+share) everything is computed in turn, on the caller's thread, when it is taken.
 
 Right after the coarsest level's, the helper also loads the kernels that the refinement and the
 render call (`load_kernels`), from Numba's cache, while the main thread trains the OS-Map: else
@@ -19,6 +19,7 @@ the main thread loads each at its first call (about 0.05 s of a 256x256 run's wa
     ahead = LevelsAhead(opts)
     ahead.submit(level, image, lo, hi)       # every level, coarsest first
     ahead.load_kernels()                     # after the coarsest (threaded only)
+    ahead.trained()                          # once the coarsest level's OS-Map is trained
     feat, knn = ahead.take(level)            # when its refinement starts
     ahead.close()                            # in a finally: drops what was not taken
 """
@@ -40,11 +41,11 @@ def level_inputs(image, lo, hi, opts: SynthOptions):
     return feat, knn_candidates(feat, lo, hi, opts)
 
 
-def _on_helper(image, lo, hi, opts: SynthOptions):
-    """level_inputs on the helper thread, its k-NN bands run there too: the band threads stay
-    free for the main thread's refinement, and while the main thread trains the OS-Map the two
-    threads take a core each."""
-    with on_this_thread():
+def _on_helper(image, lo, hi, opts: SynthOptions, training):
+    """level_inputs on the helper thread; while `training()` (the main thread trains the
+    OS-Map on one core) its k-NN bands run on the helper itself, so that the two take a core
+    each, and afterwards on the band threads, beside the refinement's."""
+    with on_this_thread(training):
         return level_inputs(image, lo, hi, opts)
 
 
@@ -114,6 +115,8 @@ class LevelsAhead:
     def __init__(self, opts: SynthOptions):
         self._opts = opts
         self._pending: dict[int, Future | tuple] = {}
+        self._training = threading.Event()  # set until the coarsest level's OS-Map is trained
+        self._training.set()
         threads = thread_count()
         self._pool = (ThreadPoolExecutor(1, thread_name_prefix="osmap-ahead",
                                          initializer=_same_threads, initargs=(threads,))
@@ -123,11 +126,17 @@ class LevelsAhead:
         if self._pool is None:
             self._pending[level] = (image, lo, hi)
         else:
-            self._pending[level] = self._pool.submit(_on_helper, image, lo, hi, self._opts)
+            self._pending[level] = self._pool.submit(_on_helper, image, lo, hi, self._opts,
+                                                     self._training.is_set)
 
     def load_kernels(self) -> None:
         if self._pool is not None:
             self._pool.submit(load_kernels)
+
+    def trained(self) -> None:
+        """The main thread has trained the OS-Map: the helper's bands go back to the band
+        threads."""
+        self._training.clear()
 
     def take(self, level: int):
         """(feat, knn) of a submitted level."""

@@ -124,6 +124,7 @@ def _levels(loop: LevelLoop, opts: SynthOptions, levels: int, frames: dict, ahea
         constraint = None if loop.constraint is None else loop.constraint(level, lo, hi)
         if pos is None:
             pos = loop.start(level, lo, hi, constraint)
+            ahead.trained()
             advance(1)
             sweeps = opts.coarse_sweeps
         else:
