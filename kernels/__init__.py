@@ -11,8 +11,10 @@ import os as _os
 
 if _os.environ.get("OSMAP_QUICK_LOADS") == "1":
     from osmap_kernels.cacheload import quick_loads as _quick_loads
+    from osmap_kernels.cacheload import runtime_ahead as _runtime_ahead
 
-    _quick_loads()
+    if _quick_loads() and _os.environ.get("NUMBA_DISABLE_JIT") != "1":
+        _runtime_ahead()
 
 from osmap_kernels.cacheload import start_up_done as _start_up_done  # noqa: E402
 

@@ -5,11 +5,13 @@ only those rows, each from inputs it does not write: the result is the same byte
 thread count or the order the bands run in.
 
 The thread count is Numba's: numba.get_num_threads() once Numba's threading layer is up (an
-osmap_cli.cluster worker sets it per job), else NUMBA_NUM_THREADS (all cores by default).
+osmap_cli.cluster worker sets it per job), else NUMBA_NUM_THREADS (all cores by default). A
+thread inside `on_this_thread()` runs its bands itself, as one band.
 """
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
@@ -18,6 +20,7 @@ BANDS_PER_THREAD = 4  # more bands than threads: uneven rows still share out eve
 _pool = None
 _pool_size = 0
 _lock = threading.Lock()
+_local = threading.local()
 
 
 def thread_count() -> int:
@@ -49,9 +52,29 @@ def band_ranges(rows: int, threads: int) -> list[tuple[int, int]]:
     return [(a, b) for a, b in zip(edges, edges[1:]) if b > a]
 
 
+def _always() -> bool:
+    return True
+
+
+@contextlib.contextmanager
+def on_this_thread(while_=_always):
+    """Within it, run_bands called on this thread runs the kernel over all rows itself (one
+    band) whenever `while_()` is true at the call: for a helper thread's work beside a main
+    thread that computes on one core, which would otherwise share that core with the band
+    threads. The same bytes (see above)."""
+    before = getattr(_local, "inline", None)
+    _local.inline = while_
+    try:
+        yield
+    finally:
+        _local.inline = before
+
+
 def run_bands(kernel, rows: int, *args) -> None:
-    """kernel(*args, y0, y1) for every band of `rows` rows, on thread_count() threads."""
-    threads = thread_count()
+    """kernel(*args, y0, y1) for every band of `rows` rows, on thread_count() threads (one
+    band on the calling thread inside on_this_thread(), while its condition holds)."""
+    inline = getattr(_local, "inline", None)
+    threads = 1 if inline is not None and inline() else thread_count()
     bands = band_ranges(rows, threads)
     if len(bands) <= 1:
         for y0, y1 in bands:

@@ -13,13 +13,16 @@ this way, gets the refresh and Numba's own load after all; a compile refreshes t
 on the Numba versions it was checked against (outputs byte-identical, tests green); any other
 keeps Numba's own loading.
 
+The runtime itself is set up on a helper thread as soon as osmap_kernels is imported
+(`runtime_ahead`), beside the work a run does before its first kernel call.
+
 The console script sets OSMAP_QUICK_LOADS=1 (its worker processes inherit it); importing
-osmap_kernels then turns this on. A library user's process keeps Numba's behaviour.
+osmap_kernels then turns both on. A library user's process keeps Numba's behaviour.
 """
 
 from __future__ import annotations
 
-__all__ = ["QUICK_LOADS_CHECKED", "quick_loads", "start_up_done"]
+__all__ = ["QUICK_LOADS_CHECKED", "quick_loads", "runtime_ahead", "start_up_done"]
 
 QUICK_LOADS_CHECKED = ("0.68.",)
 
@@ -54,6 +57,29 @@ def quick_loads() -> bool:
     Cache.load_overload = load_overload
     environment._rebuild_env = _quick_rebuild_env(environment._rebuild_env)
     return True
+
+
+def runtime_ahead() -> None:
+    """Set up Numba's runtime (NRT) on a helper thread now, not at the first kernel's load: its
+    LLVM compile (about 0.03 CPU s) runs mostly outside the GIL, beside what the process does
+    before it calls a kernel (the rest of the imports, reading the input, the set-up). A kernel
+    loaded before it is done waits for it (Numba's compiler lock); if it fails, the first load
+    sets the runtime up again, as without this. The target context is made here, on the
+    calling thread, so that every kernel and the runtime share one."""
+    import threading
+
+    from numba.core.registry import cpu_target
+    from numba.core.runtime.nrt import rtsys
+
+    context = cpu_target.target_context
+
+    def set_up():
+        try:
+            rtsys.initialize(context)
+        except Exception:  # noqa: BLE001, S110 - see the docstring
+            pass
+
+    threading.Thread(target=set_up, name="osmap-runtime", daemon=True).start()
 
 
 def _quick_rebuild_env(numba_rebuild):

@@ -50,3 +50,75 @@ print(LevelsAhead(SynthOptions())._pool is None)  # one thread: everything in tu
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                          check=True).stdout.split()
     assert out == ["2", "2", "True"]
+
+
+def test_bands_on_this_thread_run_as_one_band_with_the_same_result():
+    import threading
+
+    from osmap_kernels.bands import on_this_thread, run_bands
+
+    calls = []
+
+    def kernel(out, y0, y1):
+        calls.append((threading.get_ident(), y0, y1))
+        out[y0:y1] = np.arange(y0, y1)
+
+    spread, inline = np.zeros(40), np.zeros(40)
+    run_bands(kernel, 40, spread)
+    banded = len(calls)
+    calls.clear()
+    with on_this_thread():
+        run_bands(kernel, 40, inline)
+    assert calls == [(threading.get_ident(), 0, 40)]
+    assert inline.tobytes() == spread.tobytes() == np.arange(40.0).tobytes()
+    run_bands(kernel, 40, inline)  # outside it, bands again (as many as before)
+    assert len(calls) == 1 + banded
+    training = [True]
+    with on_this_thread(lambda: training[0]):  # only while its condition holds
+        run_bands(kernel, 40, inline)
+        assert len(calls) == 2 + banded
+        training[0] = False
+        run_bands(kernel, 40, inline)
+    assert len(calls) == 2 + 2 * banded
+
+
+def test_work_done_meanwhile_gives_its_result_or_raises_its_error():
+    from osmap_cli.synth.ahead import Meanwhile
+
+    assert Meanwhile(sum, [1, 2, 3]).result() == 6
+    failing = Meanwhile(int, "not a number")
+    for _ in range(2):  # the same error each time it is asked for
+        try:
+            failing.result()
+        except ValueError as exc:
+            assert "not a number" in str(exc)
+        else:
+            raise AssertionError("no error")
+
+
+def test_a_lattice_found_meanwhile_is_the_one_found_first():
+    """The automatic lattice, found while the OS-Map trains, gives the bytes of a run that
+    found it before (the lattice given by hand, as found)."""
+    from osmap_cli.synth.lattice import find_lattice
+    from osmap_cli.synth.pipeline import synthesize
+
+    y, x = np.mgrid[0:48, 0:48]
+    rng = np.random.default_rng(5)
+    tile = rng.random((8, 6, 3)).astype(np.float32)
+    exemplar = tile[y % 8, x % 6] + 0.05 * rng.random((48, 48, 3)).astype(np.float32)
+    found = find_lattice(exemplar)
+    assert found is not None
+    opts = SynthOptions(width=40, height=40, seed=2)
+    auto = synthesize(exemplar, opts)
+    assert auto.lattice is not None and auto.lattice.vectors == found.vectors
+    from osmap_cli.synth import pipeline
+
+    given = pipeline._lattice
+    try:  # the lattice resolved up front, as a lattice given by hand is
+        pipeline_opts = opts.replace(lattice="off")
+        pipeline._lattice = lambda *args: found
+        first = synthesize(exemplar, pipeline_opts)
+    finally:
+        pipeline._lattice = given
+    assert first.pixels.tobytes() == auto.pixels.tobytes()
+    assert first.positions.tobytes() == auto.positions.tobytes()

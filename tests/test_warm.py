@@ -287,6 +287,21 @@ print(getattr(Cache.load_overload, "quick", False), "numba.np.arrayobj" in sys.m
     assert quick[2:] == plain[2:] and quick[2] == "0"  # loaded from the cache, same results
 
 
+def test_quick_loads_set_up_numbas_runtime_ahead_on_a_helper_thread():
+    code = """
+import threading
+import osmap_kernels
+from numba.core.runtime.nrt import rtsys
+helper = [t for t in threading.enumerate() if t.name == "osmap-runtime"]
+for t in helper:
+    t.join(60)
+print(len(helper), rtsys._init)
+"""
+    assert _python(code, OSMAP_QUICK_LOADS="1") == "1 True"
+    # a library user's process sets it up at its first kernel, as Numba does
+    assert _python(code, OSMAP_QUICK_LOADS="0") == "0 False"
+
+
 def test_the_console_script_starts_up_without_the_collector_until_the_kernels_load():
     code = """
 import gc

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from osmap_cli.synth.ahead import LevelsAhead, level_inputs
+from osmap_cli.synth.ahead import LevelsAhead, Meanwhile, level_inputs
 from osmap_cli.synth.lattice import Lattice
 from osmap_cli.synth.options import SynthOptions
 from osmap_cli.synth.organise import organise
@@ -58,6 +58,8 @@ class LevelLoop:
     rounds: refinements per level; round r > 0 computes its features from
     restyle(level, previous round's source image, pos) (a hole matched against its own fill).
     lattice: the exemplar's lattice (osmap_cli.synth.lattice.Lattice, finest level) or None;
+    find_lattice() -> the lattice instead, asked for once the coarsest level's start is laid
+    out (found meanwhile on another thread: synthesize's automatic lattice);
     out_lattice: the output's when it differs (tileable: osmap_cli.synth.regular.wrapped);
     lattice_phase(level) -> the level's exemplar phase map (an atlas;
     osmap_cli.synth.regular.atlas_phase); pinned_phase: the output's lattice phase is 0
@@ -74,6 +76,7 @@ class LevelLoop:
     rounds: int = 1
     restyle: Callable | None = None
     lattice: Lattice | None = None
+    find_lattice: Callable | None = None
     out_lattice: Lattice | None = None
     lattice_phase: Callable | None = None
     pinned_phase: bool = False
@@ -95,30 +98,33 @@ def run_levels(loop: LevelLoop, opts: SynthOptions, progress=None):
         jac = loop.jacobian_field(loop.out_shapes[level])
         return (jac, *loop.bounds(level, loop.pyramid[level].shape[:2], jac))
 
-    # the exemplar's features and k-NN table of a level are computed a level ahead (ahead.py)
+    # the exemplar's features and k-NN table of every level are computed ahead, on a helper
+    # thread, while the main thread trains the OS-Map and refines the coarser levels (ahead.py)
     ahead = LevelsAhead(opts)
     try:
-        coarsest = frame(levels - 1)
-        ahead.submit(levels - 1, loop.pyramid[levels - 1], *coarsest[1:])
-        ahead.load_kernels()
-        return _levels(loop, opts, levels, frame, coarsest, ahead, advance)
+        frames = {}
+        for level in range(levels - 1, -1, -1):
+            frames[level] = frame(level)
+            ahead.submit(level, loop.pyramid[level], *frames[level][1:])
+            if level == levels - 1:
+                ahead.load_kernels()
+        return _levels(loop, opts, levels, frames, ahead, advance)
     finally:
         ahead.close()
 
 
-def _levels(loop: LevelLoop, opts: SynthOptions, levels: int, frame, coarsest, ahead, advance):
-    """run_levels' loop over the levels, coarsest first (`coarsest`: its frame, submitted)."""
+def _levels(loop: LevelLoop, opts: SynthOptions, levels: int, frames: dict, ahead, advance):
+    """run_levels' loop over the levels, coarsest first (`frames`: each level's (jacobian field,
+    lo, hi), submitted; each is dropped as its level starts)."""
     pos = constraint = None
-    current = coarsest
+    exemplar_lattice = loop.lattice
     for level in range(levels - 1, -1, -1):
         image = loop.pyramid[level]
-        jac_field, lo, hi = current
-        if level > 0:
-            current = frame(level - 1)
-            ahead.submit(level - 1, loop.pyramid[level - 1], *current[1:])
+        jac_field, lo, hi = frames.pop(level)
         constraint = None if loop.constraint is None else loop.constraint(level, lo, hi)
         if pos is None:
             pos = loop.start(level, lo, hi, constraint)
+            ahead.trained()
             advance(1)
             sweeps = opts.coarse_sweeps
         else:
@@ -126,10 +132,12 @@ def _levels(loop: LevelLoop, opts: SynthOptions, levels: int, frame, coarsest, a
             if constraint is not None:
                 pos = constraint.pin(pos)
             sweeps = opts.sweeps
+        if loop.find_lattice is not None and level == levels - 1:
+            exemplar_lattice = loop.find_lattice()
         lattice = None
-        if loop.lattice is not None:
+        if exemplar_lattice is not None:
             phases = None if loop.lattice_phase is None else loop.lattice_phase(level)
-            lattice = level_lattice(loop.lattice, 2 ** level, jac_field[0, 0], pos, lo, hi,
+            lattice = level_lattice(exemplar_lattice, 2 ** level, jac_field[0, 0], pos, lo, hi,
                                     phases, pinned_phase=loop.pinned_phase,
                                     output=loop.out_lattice)
             if lattice is not None:
@@ -203,8 +211,13 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
                              f"{exemplar.shape[1]}x{exemplar.shape[0]}: they must match")
         opts = opts.replace(coarse_sweeps=opts.coarse_sweeps * GUIDED_COARSE_FACTOR)
         regions = guide_regions(guide) if painted and opts.method == "osmap" else None
+    found = None
     if regions is not None and opts.lattice == "auto" and fields is None:
         lattice = _region_lattices(opts, exemplar, regions)
+    elif (opts.lattice == "auto" and opts.method == "osmap" and fields is None
+          and not opts.tileable):
+        # found while the coarsest level's OS-Map trains, which does not use it
+        lattice, found = None, Meanwhile(resolve_lattice, opts.lattice, exemplar)
     else:
         lattice = _lattice(opts, exemplar, fields is not None)
     if opts.method == "paper":
@@ -257,7 +270,10 @@ def synthesize(exemplar: np.ndarray, options: SynthOptions, progress=None,
         lattice = lattice if out_lattice is not None else None
     pos, jac_field, _ = run_levels(LevelLoop(pyramid, shapes, jacobian_field, bounds, start,
                                              guides=guides, lattice=lattice,
+                                             find_lattice=None if found is None else found.result,
                                              out_lattice=out_lattice), opts, progress)
+    if found is not None:
+        lattice = found.result()
     pixels = render(exemplar, pos, jac_field, *render_settings(opts))
     return SynthResult(pixels, pos, None if fields is None else jac_field, lattice)
 
