@@ -270,7 +270,8 @@ def main(argv=None) -> int:
     methods = args.methods.split(",")
     print(HEADER, flush=True)
     rows = run(args.names.split(","), [int(s) for s in args.sides.split(",")], methods,
-               args.sheet, seed=args.seed, changes=changes, log=lambda line: print(line, flush=True), fill=fill)
+               args.sheet, seed=args.seed, changes=changes,
+               log=lambda line: print(line, flush=True), fill=fill)
     text = tables(rows, methods)
     print(text[text.index(BARS) - 1:])
     if args.markdown is not None:
