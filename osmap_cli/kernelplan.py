@@ -19,8 +19,9 @@ __all__ = ["PLAN", "plan_digest", "plan_exemplar", "write_inputs"]
 # UVs (OBJ), "{out}": a scratch folder.
 # `osmap solid` at 32^3: the plan's exemplar reads as particles, so the default method builds
 # that structure and fills it over two levels (16^3 is a single level: the fill's upsampling
-# and labelled sharpening would compile on a user's first run); every structure kind, and
-# --tileable, calls the same kernels with the same types.
+# and labelled sharpening would compile on a user's first run); "{cells}", a mosaic of
+# polygons with thin dark walls, reads as packed cells, whose tessellation has a kernel of its
+# own; every other structure kind, and --tileable, calls the same kernels with the same types.
 # Each command runs with its defaults, so a new default method is covered as it lands; other
 # methods (`osmap solid --method legacy`: 70 CPU s of parallel kernels) compile on first use.
 # A new command with kernels of its own needs one line here.
@@ -29,23 +30,41 @@ PLAN = {
     "surface": ["surface", "--shape", "torus", "-o", "{out}/grid.obj", "--grid", "6x6",
                 "--points", "400", "--steps", "600", "--quiet"],
     "solid": ["solid", "{ex}", "-o", "{out}/solid.npy", "--size", "32", "--quiet"],
+    "solid-cells": ["solid", "{cells}", "-o", "{out}/cells.npy", "--size", "32", "--quiet"],
     "carve": ["carve", "{mesh}", "--exemplar", "{ex}", "--size", "16", "-o", "{out}/carved.glb",
               "--texture-size", "64", "--quiet"],
 }
 
 
-def plan_exemplar(regular: bool = False):
-    """float32 (48, 48, 3): the plan's exemplar: blocks of noise, or (REGULAR) a 16x16 tile
-    repeated three times each way, that --lattice auto reads as a 2D lattice."""
+def plan_exemplar(kind: str = "blocks"):
+    """float32 (48, 48, 3): one of the plan's exemplars. "blocks": blocks of noise; "regular": a
+    16x16 tile repeated three times each way, that --lattice auto reads as a 2D lattice;
+    "cells": 25 polygons of random colours with walls about 1 px wide (a periodic Voronoi
+    mosaic of a jittered grid), that method structure reads as packed cells."""
     import numpy as np
 
     rng = np.random.default_rng(0)
-    if regular:
+    if kind == "regular":
         pixels = np.tile(rng.random((16, 16, 3)), (3, 3, 1)) * 0.9 + 0.1 * rng.random((48, 48, 3))
+    elif kind == "cells":
+        side, count = 48, 5
+        grid = (np.arange(count) + 0.5) * side / count
+        seeds = np.stack(np.meshgrid(grid, grid, indexing="ij"), -1).reshape(-1, 2)
+        seeds += rng.uniform(-2.5, 2.5, seeds.shape)
+        offsets = (np.stack(np.mgrid[0:side, 0:side], -1) + 0.5)[:, :, None, :] - seeds
+        offsets -= side * np.round(offsets / side)
+        dist = np.sqrt((offsets ** 2).sum(-1))
+        nearest = np.sort(dist, -1)
+        pixels = (0.35 + 0.6 * rng.random((count * count, 3)))[np.argmin(dist, -1)]
+        pixels[nearest[..., 1] - nearest[..., 0] < 1.0] = 0.08
+        pixels += 0.03 * rng.random((side, side, 3))
     else:
         base = rng.random((12, 12, 3)).astype(np.float32)
         pixels = np.kron(base, np.ones((4, 4, 1), np.float32)) * 0.8 + 0.2 * rng.random((48, 48, 3))
     return pixels.astype(np.float32)
+
+
+EXEMPLARS = {"ex": "blocks", "regular": "regular", "cells": "cells"}  # the plan's field: kind
 
 
 def plan_digest() -> str:
@@ -55,8 +74,8 @@ def plan_digest() -> str:
     import json
 
     digest = hashlib.sha256(json.dumps(PLAN, sort_keys=True).encode())
-    for regular in (False, True):
-        digest.update(plan_exemplar(regular).tobytes())
+    for kind in EXEMPLARS.values():
+        digest.update(plan_exemplar(kind).tobytes())
     return digest.hexdigest()
 
 
@@ -72,10 +91,10 @@ def write_inputs(folder: str) -> dict[str, str]:
     """Write the plan's inputs into FOLDER; the plan's fields (but "out") as paths."""
     from osmap_cli.imageio import write_image
 
-    fields = {name: os.path.join(folder, file) for name, file in
-              (("ex", "ex.png"), ("regular", "regular.png"), ("mesh", "mesh.obj"))}
-    write_image(fields["ex"], plan_exemplar(), 8)
-    write_image(fields["regular"], plan_exemplar(regular=True), 8)
+    fields = {"mesh": os.path.join(folder, "mesh.obj")}
+    for field, kind in EXEMPLARS.items():
+        fields[field] = os.path.join(folder, f"{field}.png")
+        write_image(fields[field], plan_exemplar(kind), 8)
     with open(fields["mesh"], "w") as handle:
         handle.write(TETRAHEDRON_OBJ)
     return fields

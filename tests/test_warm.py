@@ -27,7 +27,7 @@ def test_a_regular_exemplars_lattice_kernels_are_warmed_too():
 
     # the build's plan runs a regular exemplar beside the plain one (a lattice run calls them)
     assert "{ex}" in PLAN["synth"] and "{regular}" in PLAN["synth"]
-    assert find_lattice(plan_exemplar(regular=True)) is not None
+    assert find_lattice(plan_exemplar("regular")) is not None
     assert find_lattice(plan_exemplar()) is None
     # and a development tree's first run compiles them with the organise group
     names = {kernel.__name__ for kernel, _ in warm._dispatchers("organise")}
@@ -351,3 +351,21 @@ def test_the_plans_solid_run_calls_the_structure_fills_kernels(run_cli, monkeypa
     done = run_cli(*(arg.format(**fields) for arg in PLAN["solid"]))
     assert done.code == 0, done.err
     assert called == {"fill_positions", "kopf_average_labelled", "kopf_cluster_labelled"}
+
+
+def test_the_plans_cells_run_builds_packed_cells(run_cli, monkeypatch, tmp_path):
+    from osmap_cli.kernelplan import PLAN, plan_exemplar, write_inputs
+    from osmap_cli.solid.structure import cells
+    from osmap_cli.solid.structure.analysis import analyse, reads_as_cells
+
+    # packed cells are labelled by a kernel no other structure calls: the plan runs an
+    # exemplar that reads as cells, or that kernel compiles on a user's first run
+    assert reads_as_cells(analyse(plan_exemplar("cells")))
+    assert not reads_as_cells(analyse(plan_exemplar()))
+    called = []
+    kernel = cells.power_cells
+    monkeypatch.setattr(cells, "power_cells", lambda *args: called.append(1) or kernel(*args))
+    fields = dict(write_inputs(str(tmp_path)), out=str(tmp_path))
+    done = run_cli(*(arg.format(**fields) for arg in PLAN["solid-cells"]))
+    assert done.code == 0, done.err
+    assert called
