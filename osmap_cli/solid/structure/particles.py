@@ -9,6 +9,10 @@ and diagonal planes), measure with the exemplar's own profile statistics and cor
 size, spread of sizes, elongation, roughness) land the cuts' area fraction, size distribution
 and shape on the exemplar's.
 
+A sparse volume is then corrected on its own cuts (build): the fit's probe is a smaller draw of
+the same model, and its figures vary by seed more than the profile bar allows; the source
+profiles are drawn systematically (every range of sizes its expected number within one).
+
 Shapes: an ellipsoid of random orientation cut by a few random planes (angular chips) with a
 smooth bump on its radius (irregular outlines). Placement: random sequential addition of their
 bounding spheres, then every voxel belongs to the particle of least power distance (a Laguerre
@@ -133,7 +137,8 @@ def _draw(d: np.ndarray, n: int, rng) -> np.ndarray:
     every range of sizes gets its expected number within one. Drawn independently, a few large
     particles carry much of a sparse material's area (terrazzo's area-weighted diameter is above
     its 90th percentile) and a volume that drew fewer of them read its cuts' area-weighted
-    diameter up to 20 % small."""
+    diameter up to 20 % small. Sparse particles only: packed ones are drawn independently
+    (drawn systematically, samples/cells at 64^3 read worse)."""
     order = np.argsort(-d, kind="stable")
     weights = 1.0 / d[order]
     cumulative = np.cumsum(weights) * (n / weights.sum())
@@ -160,13 +165,15 @@ def _unit(rng, shape):
 def build(shape, params: ParticleParams, sources: ParticleSources, seed: int,
           wrap: bool, factor: float = 1.0, growth: float | None = None) -> Particles:
     """The particles of a (Z, Y, X) volume (periodic with wrap), `params` as fitted, then
-    corrected on the volume's own cuts: the fit's probe is another, smaller draw of the same
-    model (terrazzo at 128^3: its cuts' fraction read -16 % to +11 % and its area-weighted
-    diameter -26 % to -10 % of the same parameters' over three seeds), so a volume built from
-    the round that read best there reads small or large by as much. A volume at least as large
-    as the probe is cut (VOLUME_SLICES per axis and the diagonal planes), and its number and
-    size corrected as in fit, up to VOLUME_ROUNDS builds; the build whose cuts read nearest the
-    target wins. `factor`, `growth`: as for fit."""
+    corrected on the volume's own cuts. The fit's probe is another, smaller draw of the same
+    model (terrazzo at 128^3: three probes of the fitted parameters read their cuts' fraction
+    -16 % to +11 % and their area-weighted diameter -26 % to -10 % off the target), so a volume
+    built from the round that read best there reads small or large by as much. Sparse
+    particles in a volume at least as large as the probe: the volume is cut (VOLUME_SLICES per
+    axis and the diagonal planes) and its number, size and spread of sizes corrected as in fit,
+    up to VOLUME_ROUNDS builds; the build whose cuts read nearest the target wins. Packed ones
+    are built once (samples/cells keeps its measured packing). `factor`, `growth`: as for
+    fit."""
     tf = sources.target.scaled(1.0 / (factor * _growth(sources, factor, growth))).figures()
     if tf["fraction"] > DENSE or min(shape) < _probe_side(tf):
         return _realise(shape, params, sources, seed, wrap, factor)
