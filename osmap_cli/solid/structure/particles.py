@@ -55,7 +55,7 @@ VOLUME_TOLERANCE = 0.05  # a build whose cuts read within this of the target is 
 FILL_GROWTH = {1: 1.0, 2: 1.1}
 # sparse particles built to the fitted sizes on the volume itself (build) are not read larger
 # filled: terrazzo at 64^3 fitted 1.1 small read its finished cuts' area-weighted diameter
-# 0.86-0.91 of the exemplar's over three seeds, fitted at its size 0.93-1.06
+# 0.86-0.91 of the exemplar's over three seeds, fitted at its size 0.91-0.96
 SPARSE_GROWTH = 1.0
 SOURCE_MIN_AREA = 1  # px: specks too are particles (the fill alone does not make them)
 # the sizes fitted are the area-weighted mean and the 90th percentile: what the eye reads as the
