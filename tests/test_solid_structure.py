@@ -172,21 +172,22 @@ def test_the_fit_aims_sparse_particles_at_the_exemplars_sizes():
 
 
 def test_a_sparse_volume_reads_its_target_whatever_the_seed():
-    # 100 profiles of log-normal sizes at 40 %: the volume's own cuts read the target's area
-    # fraction, area-weighted and 90th-percentile diameters on every seed. Measured within 0.06
-    # on seeds 1-3; a volume built from the probe's best round alone read up to 0.10 (fraction)
-    # and 0.15 (90th percentile) off: the probe is another, smaller draw of the same model
+    # 100 profiles of log-normal sizes at 40 % in a 64 px exemplar (read 2x): the volume's own
+    # cuts read the target's area fraction, area-weighted and 90th-percentile diameters on
+    # every seed. Measured within 0.07 on seeds 1-3; a volume built from the probe's best round
+    # alone, aimed 1.1 times small, read 0.17 and 0.19 (90th percentile) off: the probe is
+    # another, smaller draw of the same model
     rng = np.random.default_rng(0)
-    d = np.exp(rng.normal(np.log(5.0), 0.5, 100))
+    d = np.exp(rng.normal(np.log(5.0), 0.5, 100)) * 2
     target = ProfileStats(0.4, len(d), 0.0, np.sort(d), 0.9, 1.3)
-    sources = pt.ParticleSources(d, rng.uniform(0, 1, (len(d), 3)), target, 2.0)
-    want = target.figures()
+    sources = pt.ParticleSources(d, rng.uniform(0, 1, (len(d), 3)), target, 4.0)
+    want = target.scaled(0.5).figures()
     for seed in (1, 2, 3):
-        params, _ = pt.fit(sources, seed, cap=48)
-        built = pt.build((48,) * 3, params, sources, seed, False)
+        params, _ = pt.fit(sources, seed, factor=2.0, cap=48)
+        built = pt.build((48,) * 3, params, sources, seed, False, 2.0)
         got = pt.cut_stats(built.owner >= 0, False, 16).figures()
         errors = {k: abs(got[k] / want[k] - 1) for k in ("fraction", "diameter", "d90")}
-        assert max(errors.values()) < 0.08, (seed, errors)
+        assert max(errors.values()) < 0.09, (seed, errors)
 
 
 def test_a_particle_filled_from_two_exemplar_cells_takes_one_cells_colours():
