@@ -177,9 +177,8 @@ def build(shape, params: ParticleParams, sources: ParticleSources, seed: int,
     particles in a volume at least as large as the probe: the volume is cut (VOLUME_SLICES per
     axis and the diagonal planes) and its number, size and spread of sizes corrected as in fit,
     up to VOLUME_ROUNDS builds (the median aimed MEDIAN_LOSS small); the build whose cuts read
-    nearest the target wins. Packed ones
-    are built once (samples/cells keeps its measured packing). `factor`, `growth`: as for
-    fit."""
+    nearest the target wins. Packed ones are built once (samples/cells keeps its measured
+    packing). `factor`, `growth`: as for fit."""
     tf = sources.target.scaled(1.0 / (factor * _growth(sources, factor, growth))).figures()
     if tf["fraction"] > DENSE or min(shape) < _probe_side(tf):
         return _realise(shape, params, sources, seed, wrap, factor)
