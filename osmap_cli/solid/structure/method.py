@@ -72,8 +72,11 @@ class Plan:
         m = self.model
         if isinstance(m, tuple):  # particles: (sources, params, factor)
             _, params, factor = m
-            return [f"particles: {params.density * factor ** 3 * 1e6:.1f} per 10^6 voxels, "
-                    f"aspect {params.aspect:.2f}, gap {params.gap / factor:.1f} voxels"]
+            count = f"{params.density * factor ** 3 * 1e6:.1f} per 10^6 voxels"
+            gap = f"{params.gap / factor:.1f} voxels"
+            if isinstance(params, cl.CellParams):
+                return [f"packed cells: {count}, walls {gap}, {params.lloyd} Lloyd steps"]
+            return [f"particles: {count}, aspect {params.aspect:.2f}, gap {gap}"]
         if isinstance(m, ly.LayerModel):
             where = (f"rings around the {'xyz'[m.axis]} axis" if m.rings else
                      "planar, normal (z, y, x) = " + ", ".join(f"{v:.2f}" for v in m.normal))
