@@ -21,7 +21,8 @@ __all__ = ["PLAN", "plan_digest", "plan_exemplar", "write_inputs"]
 # that structure and fills it over two levels (16^3 is a single level: the fill's upsampling
 # and labelled sharpening would compile on a user's first run); "{cells}", a mosaic of
 # polygons with thin dark walls, reads as packed cells, whose tessellation has a kernel of its
-# own; every other structure kind, and --tileable, calls the same kernels with the same types.
+# own (one batch, one process: the solid kernels compile once); every other structure kind,
+# and --tileable, calls the same kernels with the same types.
 # Each command runs with its defaults, so a new default method is covered as it lands; other
 # methods (`osmap solid --method legacy`: 70 CPU s of parallel kernels) compile on first use.
 # A new command with kernels of its own needs one line here.
@@ -29,8 +30,7 @@ PLAN = {
     "synth": ["synth", "{ex}", "{regular}", "--out-dir", "{out}", "--size", "64", "--quiet"],
     "surface": ["surface", "--shape", "torus", "-o", "{out}/grid.obj", "--grid", "6x6",
                 "--points", "400", "--steps", "600", "--quiet"],
-    "solid": ["solid", "{ex}", "-o", "{out}/solid.npy", "--size", "32", "--quiet"],
-    "solid-cells": ["solid", "{cells}", "-o", "{out}/cells.npy", "--size", "32", "--quiet"],
+    "solid": ["solid", "{ex}", "{cells}", "--out-dir", "{out}", "--size", "32", "--quiet"],
     "carve": ["carve", "{mesh}", "--exemplar", "{ex}", "--size", "16", "-o", "{out}/carved.glb",
               "--texture-size", "64", "--quiet"],
 }

@@ -366,6 +366,6 @@ def test_the_plans_cells_run_builds_packed_cells(run_cli, monkeypatch, tmp_path)
     kernel = cells.power_cells
     monkeypatch.setattr(cells, "power_cells", lambda *args: called.append(1) or kernel(*args))
     fields = dict(write_inputs(str(tmp_path)), out=str(tmp_path))
-    done = run_cli(*(arg.format(**fields) for arg in PLAN["solid-cells"]))
+    done = run_cli(*(arg.format(**fields) for arg in PLAN["solid"]))
     assert done.code == 0, done.err
     assert called
