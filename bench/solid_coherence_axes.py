@@ -11,24 +11,19 @@ Needs the meters' venv (TEXMETRICS_PYTHON, as bench/solid_meters.py).
 from __future__ import annotations
 
 import argparse
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
-from solid_meters import REPO, TEXMETRICS_PY, load_exemplar, texmetrics
+from solid_meters import low_passed, texmetrics, written_exemplars
 
 FAMILIES = ("z", "y", "x")
 
 
 def per_family(ex_path: Path, volume_path: Path) -> dict:
     """{family: (raw, matched)} coh_mean."""
-    ex_lp = volume_path.with_name(volume_path.stem + "_lp_ex.png")
-    vol_lp = volume_path.with_name(volume_path.stem + "_lp.npy")
-    subprocess.run([str(TEXMETRICS_PY), str(REPO / "bench" / "lowpass.py"), str(ex_path),
-                    str(volume_path), "1.0", str(ex_lp), str(vol_lp)], check=True)
-    raw, matched = texmetrics(ex_path, volume_path), texmetrics(ex_lp, vol_lp)
+    raw, matched = texmetrics(ex_path, volume_path), texmetrics(*low_passed(ex_path, volume_path))
     return {f: (raw[f]["coh_mean"], matched[f]["coh_mean"]) for f in FAMILIES}
 
 
@@ -37,17 +32,13 @@ def main(argv=None) -> int:
     ap.add_argument("--names", default="wood_planks_horizontal,marble_swirl_green")
     ap.add_argument("--side", type=int, default=64)
     args = ap.parse_args(argv)
-    from osmap_cli.imageio import write_image
     from osmap_cli.solid import SolidOptions, synthesize_solid
 
     side = args.side
     print("| volume | made by | z | y | x |\n|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        for name in args.names.split(","):
-            exemplar = load_exemplar(name, side)
-            ex_path = folder / f"{name}.png"
-            write_image(ex_path, exemplar, 8)
+        for name, exemplar, ex_path in written_exemplars(args.names.split(","), side, folder):
             for method in ("structure", "osmap"):
                 options = SolidOptions(width=side, height=side, depth=side, seed=1, method=method)
                 out = folder / f"{name}_{method}.npy"

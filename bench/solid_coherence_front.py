@@ -26,10 +26,10 @@ import numpy as np
 from solid_meters import (
     REPO,
     TEXMETRICS_PY,
-    load_exemplar,
     matched_coherence,
     texmetrics,
     worst_axis,
+    written_exemplars,
 )
 
 MASK_PATCH = 9  # pixels: about one stone of the development exemplars at 64 px
@@ -131,7 +131,7 @@ def main(argv=None) -> int:
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="a solid option changed for method structure")
     args = ap.parse_args(argv)
-    from osmap_cli.imageio import read_image, write_image
+    from osmap_cli.imageio import read_image
     from osmap_cli.options import option_spec
     from osmap_cli.solid import SolidOptions, synthesize_solid
     from osmap_cli.solid.structure.meter import profile_meter
@@ -146,10 +146,7 @@ def main(argv=None) -> int:
           "coherence | profile worst error |\n|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        for name in args.names.split(","):
-            exemplar = load_exemplar(name, side)
-            ex_path = folder / f"{name}.png"
-            write_image(ex_path, exemplar, 8)
+        for name, exemplar, ex_path in written_exemplars(args.names.split(","), side, folder):
             for method in ("structure", "osmap", "synth"):
                 if method == "synth":
                     out = folder / f"{name}_synth.png"

@@ -40,14 +40,30 @@ def texmetrics(exemplar_path: Path, volume_path: Path) -> dict:
     return json.loads(out.stdout)
 
 
-def matched_coherence(exemplar_path: Path, volume_path: Path, sigma: float = 1.0) -> float:
-    """Worst-axis coh_mean with exemplar and volume low-passed alike (bench/lowpass.py): blur
-    no longer scores better, so sharp and soft methods compare on structure."""
+def written_exemplars(names, side: int, folder: Path):
+    """(name, exemplar pixels, the exemplar as an 8-bit PNG in FOLDER) for each name."""
+    from osmap_cli.imageio import write_image
+
+    for name in names:
+        exemplar = load_exemplar(name, side)
+        path = folder / f"{name.replace('/', '_')}.png"
+        write_image(path, exemplar, 8)
+        yield name, exemplar, path
+
+
+def low_passed(exemplar_path: Path, volume_path: Path, sigma: float = 1.0) -> tuple[Path, Path]:
+    """The exemplar and the volume blurred alike (bench/lowpass.py), written beside the volume."""
     ex_lp = volume_path.with_name(volume_path.stem + "_lp_ex.png")
     vol_lp = volume_path.with_name(volume_path.stem + "_lp.npy")
     subprocess.run([str(TEXMETRICS_PY), str(REPO / "bench" / "lowpass.py"), str(exemplar_path),
                     str(volume_path), str(sigma), str(ex_lp), str(vol_lp)], check=True)
-    return worst_axis(texmetrics(ex_lp, vol_lp))["coh_mean"]
+    return ex_lp, vol_lp
+
+
+def matched_coherence(exemplar_path: Path, volume_path: Path, sigma: float = 1.0) -> float:
+    """Worst-axis coh_mean with exemplar and volume low-passed alike (bench/lowpass.py): blur
+    no longer scores better, so sharp and soft methods compare on structure."""
+    return worst_axis(texmetrics(*low_passed(exemplar_path, volume_path, sigma)))["coh_mean"]
 
 
 def granules(exemplar_path: Path, volume_path: Path) -> dict:
