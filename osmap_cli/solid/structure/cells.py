@@ -46,14 +46,12 @@ FITTED = ("fraction", "d50", "d90")
 class CellParams:
     """density: cells per voxel of the analysis' pixels (as ParticleParams.density); gap:
     wall width (px of the analysis); lloyd: relaxation steps of the seeds; spread: the
-    power weights' spread (0: a Voronoi tessellation); aspect: 1 (cells are not stretched;
-    kept so reports read particles and cells alike)."""
+    power weights' spread (0: a Voronoi tessellation)."""
 
     density: float
     gap: float = 1.5
     lloyd: int = 2
     spread: float = 0.0
-    aspect: float = 1.0
 
 
 def laguerre(shape, centres, weights, wrap: bool, step: float = 1.0):
