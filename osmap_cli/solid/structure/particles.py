@@ -142,8 +142,8 @@ def _draw(d: np.ndarray, n: int, rng) -> np.ndarray:
     every range of sizes gets its expected number within one. Drawn independently, a few large
     particles carry much of a sparse material's area (terrazzo's area-weighted diameter is above
     its 90th percentile) and a volume that drew fewer of them read its cuts' area-weighted
-    diameter up to 20 % small. Sparse particles only: packed ones are drawn independently
-    (drawn systematically, samples/cells at 64^3 read worse)."""
+    diameter up to 20 % small. Sparse particles only: packed ones (gravel) are drawn
+    independently."""
     order = np.argsort(-d, kind="stable")
     weights = 1.0 / d[order]
     cumulative = np.cumsum(weights) * (n / weights.sum())
@@ -177,8 +177,7 @@ def build(shape, params: ParticleParams, sources: ParticleSources, seed: int,
     particles in a volume at least as large as the probe: the volume is cut (VOLUME_SLICES per
     axis and the diagonal planes) and its number, size and spread of sizes corrected as in fit,
     up to VOLUME_ROUNDS builds (the median aimed MEDIAN_LOSS small); the build whose cuts read
-    nearest the target wins. Packed ones are built once (samples/cells keeps its measured
-    packing). `factor`, `growth`: as for fit."""
+    nearest the target wins. Packed ones are built once. `factor`, `growth`: as for fit."""
     tf = sources.target.scaled(1.0 / (factor * _growth(sources, factor, growth))).figures()
     if tf["fraction"] > DENSE or min(shape) < _probe_side(tf):
         return _realise(shape, params, sources, seed, wrap, factor)
