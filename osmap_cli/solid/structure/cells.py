@@ -25,7 +25,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from osmap_cli.solid.structure import particles as pt
-from osmap_cli.solid.structure.analysis import reads_as_cells
+from osmap_cli.solid.structure.analysis import PACKED_CELLS
 from osmap_kernels.cells import power_cells
 from osmap_kernels.structure import place_spheres
 
@@ -218,9 +218,10 @@ def _corrected(params: CellParams, got: dict, want: dict) -> CellParams:
 
 def fit_packing(analyses, sources: pt.ParticleSources, seed: int, factor: float = 1.0,
                 cap: int | None = None):
-    """The model of a particle exemplar: cells (CellParams) when every exemplar reads as packed
-    cells (analysis.reads_as_cells), else particles (particles.fit); (params, cut statistics)."""
-    if all(reads_as_cells(found) for found in analyses):
+    """The model of a particle exemplar: cells (CellParams) when the analysis read every
+    exemplar as packed cells (analysis.reads_as_cells), else particles (particles.fit);
+    (params, cut statistics)."""
+    if all(PACKED_CELLS in found.notes for found in analyses):
         return fit(sources, seed, factor=factor, cap=cap)
     return pt.fit(sources, seed, factor=factor, cap=cap)
 
