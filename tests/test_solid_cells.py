@@ -31,7 +31,9 @@ def cells_plan(cells64):
     return plan([cells64], np.zeros(3, np.int64), seed=1, probe_cap=48)
 
 
-def test_the_power_diagram_is_exact_and_wraps():
+@pytest.mark.parametrize("chunk", [cl.CHUNK, 31])  # 31: one block's distances at a time
+def test_the_power_diagram_is_exact_and_wraps(chunk, monkeypatch):
+    monkeypatch.setattr(cl, "CHUNK", chunk)
     rng = np.random.default_rng(0)
     shape = (20, 24, 28)
     for wrap in (True, False):
