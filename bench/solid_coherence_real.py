@@ -11,6 +11,7 @@ itself; a lower score than that is verbatim copy, which a volume can only have o
 (docs/solid.md, "A volume cannot copy on all three axes").
 
     python bench/solid_coherence_real.py [--names terrazzo_granite,...] [--quadrant 0]
+        [--methods structure,osmap]
 
 Needs the meters' venv (TEXMETRICS_PYTHON, as bench/solid_meters.py).
 """
@@ -40,12 +41,15 @@ def main(argv=None) -> int:
     ap.add_argument("--names", default=",".join(NAMES))
     ap.add_argument("--quadrant", type=int, default=0, choices=range(4),
                     help="which quadrant is the exemplar (0 top left ... 3 bottom right)")
+    ap.add_argument("--methods", default="structure,osmap")
     args = ap.parse_args(argv)
     from osmap_cli.imageio import write_image
     from osmap_cli.solid import SolidOptions, synthesize_solid
 
-    print("| exemplar (64 px quadrant) | real unseen quadrants | method structure: z / y / x "
-          "| method osmap: z / y / x |\n|---|---|---|---|")
+    methods = args.methods.split(",")
+    print("| exemplar (64 px quadrant) | real unseen quadrants | "
+          + " | ".join(f"method {m}: z / y / x" for m in methods) + " |\n"
+          + "|---" * (2 + len(methods)) + "|")
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         for name in args.names.split(","):
@@ -61,15 +65,15 @@ def main(argv=None) -> int:
                     write_image(path, part, 8)
                     real.append(worst_axis(texmetrics(ex_path, path))["coh_mean"])
             cells = []
-            for method in ("structure", "osmap"):
+            for method in methods:
                 side = exemplar.shape[0]
                 options = SolidOptions(width=side, height=side, depth=side, seed=1, method=method)
                 out = folder / f"{stem}_{method}.npy"
                 np.save(out, synthesize_solid([exemplar], options).voxels)
                 scores = texmetrics(ex_path, out)
                 cells.append(" / ".join(f"{scores[f]['coh_mean']:.2f}" for f in FAMILIES))
-            print(f"| {name} | {' / '.join(f'{r:.2f}' for r in real)} | {cells[0]} | "
-                  f"{cells[1]} |", flush=True)
+            print(f"| {name} (quadrant {args.quadrant}) | {' / '.join(f'{r:.2f}' for r in real)} | "
+                  + " | ".join(cells) + " |", flush=True)
     return 0
 
 
