@@ -182,17 +182,19 @@ def build(shape, params: ParticleParams, sources: ParticleSources, seed: int,
     if tf["fraction"] > DENSE or min(shape) < _probe_side(tf):
         return _realise(shape, params, sources, seed, wrap, factor)
     tf = dict(tf, d50=tf["d50"] / MEDIAN_LOSS.get(int(round(factor)), MEDIAN_LOSS[2]))
+    judged = VOLUME_FITTED if int(round(factor)) == 1 else FITTED
     best = None
     for round_ in range(VOLUME_ROUNDS):
         built = _realise(shape, params, sources, seed, wrap, factor)
         got = cut_stats(built.owner >= 0, wrap, VOLUME_SLICES).figures()
-        error = _error(got, tf, VOLUME_FITTED)
+        error = _error(got, tf, judged)
         if best is None or error < best[0]:
             best = (error, built)
         if error <= VOLUME_TOLERANCE or round_ == VOLUME_ROUNDS - 1:
             break
-        params = replace(_number_and_size(params, got, tf, False, factor),
-                         spread=_spread(params, got, tf))
+        params = _number_and_size(params, got, tf, False, factor)
+        if "d50" in judged:
+            params = replace(params, spread=_spread(params, got, tf))
     return best[1]
 
 
