@@ -47,6 +47,7 @@ def faces(ex_path: Path, vol_path: Path) -> dict:
 
 def main(argv=None) -> int:
     from solid_structure import synthesize
+
     from osmap_cli.imageio import write_image
 
     ap = argparse.ArgumentParser()

@@ -30,6 +30,7 @@ from osmap_cli.solid.layout import Layout
 from osmap_cli.solid.optimise import Optimisation, Polish, quality_scaled
 from osmap_cli.solid.structure.fill import Fill, fill
 from osmap_cli.solid.structure.method import add_detail, build_structure, finish, plan
+from osmap_cli.solid.structure.sheared import sheared_exemplars
 from osmap_cli.texture.histogram import match_quantiles
 
 if TYPE_CHECKING:
@@ -91,6 +92,7 @@ def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
                            found.summary())
     built = build_structure(found, task.shapes[0], task.seed, task.tileable)
     structure_seconds = time.perf_counter() - started
+    task, found = sheared_exemplars(task, found)
     if found.kind == "particles":
         found = replace(found, ex_labels=_fill_labels(found, task.tileable))
     voxels, source = fill(task, found.ex_labels, found.ex_identity, built.labels,
