@@ -25,7 +25,6 @@ RING_SIDES = 0.35  # ... and the other families' stripes are at least this coher
 MIN_RUN = 1.0
 WOBBLE_LENGTH = 4.0  # the displacement's correlation length, in layer spacings
 MAX_CHAIN = 1 << 20
-CHAINS = 12  # band sequences drawn for a volume; the one nearest the chain's long run is kept
 PARALLEL = 30.0  # degrees: one exemplar's layers this near a slice family's plane are tilted
 TILT = 45.0  # ... this much about their grain, so that no family cuts along them (the
 #               minimax of the families' band widths for turns about the grain: 1.41 : 1)
@@ -253,45 +252,13 @@ def layer_coordinate(shape, model: LayerModel, seed: int, wrap: bool):
     return u.astype(np.float32), period
 
 
-def chain_means(model: LayerModel):
-    """(mean band width along u, each phase's share of u) of the model's band sequences in
-    the long run: the transitions' stationary distribution weighting the mean runs."""
-    vals, vecs = np.linalg.eig(model.transitions.T)
-    visits = np.abs(np.real(vecs[:, np.argmin(np.abs(vals - 1.0))]))
-    visits /= max(float(visits.sum()), 1e-12)
-    runs = np.array([float(np.mean(r)) for r in model.runs])
-    return float(visits @ runs), visits * runs / max(float(visits @ runs), 1e-12)
-
-
-def sequence_error(starts, phases, sample, width: float, shares, period=None) -> float:
-    """How far a band sequence read at the values u of `sample` is from the model's long run:
-    |log| of its bands' mean width within the sample's range over `width`, plus the L1
-    distance of its phases' shares of the sample from `shares`."""
-    u = np.mod(sample, period) if period is not None else sample
-    lo, hi = float(u.min()), float(u.max())
-    crossed = int(np.count_nonzero((starts > lo) & (starts < hi)))
-    shown = (hi - lo) / max(crossed, 1)
-    got = np.bincount(band_index(starts, phases, sample, period), minlength=len(shares))
-    return abs(float(np.log(shown / width))) + float(np.abs(got / len(sample) - shares).sum())
-
-
 def layer_bands(shape, model: LayerModel, seed: int, wrap: bool) -> Bands:
-    """The layers of a volume of `shape`: u at every voxel and the bands along it. A volume
-    holds few bands, and one draw of the chain may make them wider or narrower than its long
-    run (by a tenth at 64^3, which the faces' scale shows): of CHAINS sequences the one whose
-    bands in this volume are nearest the long run's width and phase shares is kept."""
+    """The layers of a volume of `shape`: u at every voxel and the bands along it."""
     u, period = layer_coordinate(shape, model, seed, wrap)
+    if period is not None:
+        return Bands(u, *periodic_bands(model, period, seed), period)
     extent = float(np.abs(u).max()) + 2 * model.spacing
-    width, shares = chain_means(model)
-    sample = u.ravel()[::7]
-    best = None
-    for chain in range(CHAINS):
-        bands = (periodic_bands(model, period, seed + 1000 * chain) if period is not None
-                 else band_sequence(model, extent, seed + 1000 * chain))
-        err = sequence_error(*bands, sample, width, shares, period)
-        if best is None or err < best[0]:
-            best = (err, bands)
-    return Bands(u, *best[1], period)
+    return Bands(u, *band_sequence(model, extent, seed), None)
 
 
 def _step(x: np.ndarray) -> np.ndarray:
