@@ -92,7 +92,7 @@ def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
                            found.summary())
     built = build_structure(found, task.shapes[0], task.seed, task.tileable)
     structure_seconds = time.perf_counter() - started
-    task, found = sheared_exemplars(task, found)
+    task, found, unsheared = sheared_exemplars(task, found)
     if found.kind == "particles":
         found = replace(found, ex_labels=_fill_labels(found, task.tileable))
     voxels, source = fill(task, found.ex_labels, found.ex_identity, built.labels,
@@ -107,6 +107,7 @@ def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
     # the per-phase matching moves the low-pass only; this one gives back the exemplar's
     # extreme colours that the optimisation's averaging loses
     voxels = match_quantiles(voxels, pixels, options.final_histogram)
+    source = unsheared(source)
     seconds = time.perf_counter() - started
     report = (*found.report(), f"structure step {structure_seconds:.1f} s of "
               f"{seconds:.1f} s (analysis and model {found.seconds:.1f} s)")

@@ -117,15 +117,17 @@ def face_shears(found) -> dict:
 
 
 def sheared_exemplars(task, found):
-    """(task, found) where every slice family that shows the layers inclined against the
+    """(task, found, back) where every slice family that shows the layers inclined against the
     exemplar's stripes reads the exemplar sheared along its bands (a new exemplar of the task
-    and of the plan: images, pyramids, segmentation, identity); unchanged otherwise."""
+    and of the plan: images, pyramids, segmentation, identity); unchanged otherwise. back(source)
+    turns the fill's source positions ((axis, row, col) per voxel) into the exemplar's own, so
+    --uv-out and aligned maps (--with) look up the exemplar the user gave."""
     from osmap_cli.solid.core import SolidTask
     from osmap_cli.texture.pyramid import build_pyramid
 
     shears = face_shears(found)
     if not shears:
-        return task, found
+        return task, found, lambda source: source
     images, labels, identity = list(task.images), list(found.ex_labels), list(found.ex_identity)
     pyramids = list(task.pyramids)
     ex_of_axis = np.array(task.ex_of_axis, np.int64)
@@ -139,6 +141,8 @@ def sheared_exemplars(task, found):
             identity.append(turned_image(found.ex_identity[0], shear, nearest=True))
             pyramids.append(build_pyramid(images[-1], len(task.shapes)))
         ex_of_axis[family] = made[key]
+    back = _source_map({family: (shear, images[made[tuple(round(v, 6) for v in shear)]].shape[:2])
+                        for family, shear in shears.items()}, task.images[0].shape[:2])
     names = ", ".join("xyz"[f] for f in sorted(shears))
     task = SolidTask(images=images, ex_of_axis=ex_of_axis, pyramids=pyramids,
                      shapes=task.shapes, tileable=task.tileable, seed=task.seed)
@@ -146,4 +150,32 @@ def sheared_exemplars(task, found):
                     ex_identity=identity,
                     notes=[*found.notes, f"slices normal to {names} filled from the exemplar "
                            "sheared along their bands"])
-    return task, found
+    return task, found, back
+
+
+def _source_map(sheared: dict, shape):
+    """back(source) for sheared_exemplars: {family: (shear, the sheared image's (rows, cols))}
+    and the exemplar's (rows, cols); every sheared position goes to the exemplar pixel it was
+    made from (the nearest, across the stretch)."""
+
+    def back(source: np.ndarray) -> np.ndarray:
+        out = np.array(source, copy=True)
+        for family, ((vertical, m1, m2), size) in sheared.items():
+            sel = out[..., 0] == family
+            rows, cols = out[..., 1][sel].astype(np.int64), out[..., 2][sel].astype(np.int64)
+            if not vertical:  # the image was sheared transposed
+                rows, cols, size, orig = cols, rows, size[::-1], shape[::-1]
+            else:
+                orig = shape
+            s = m2 - _stretch(m1, m2) * m1
+            moved = np.rint(s * (cols - (size[1] - 1) / 2)).astype(np.int64)
+            stretched = (rows - moved) % size[0]
+            rows = np.clip(np.rint((stretched + 0.5) * orig[0] / size[0] - 0.5), 0,
+                           orig[0] - 1).astype(out.dtype)
+            cols = cols.astype(out.dtype)
+            if not vertical:
+                rows, cols = cols, rows
+            out[..., 1][sel], out[..., 2][sel] = rows, cols
+        return out
+
+    return back
