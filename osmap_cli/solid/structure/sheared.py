@@ -5,10 +5,12 @@ Layers made from one exemplar are turned about their grain (layers.TILT), so one
 direction. Filled from the exemplar as it is, that family's windows copy the exemplar's grain
 across the inclined bands in short steps: a saw-tooth hatching that reads finer than the
 material (texmetrics scale, granules' bright structures). That family reads instead the
-exemplar sheared so that its stripes run along the face's bands: every column (or row) moved a
-whole number of pixels, wrapping, so no pixel is resampled (no blur) and the wrap's seam runs
-along the stripes (it reads as one more band boundary). The segmentation and the identity
-channels are sheared alike.
+exemplar sheared so that its stripes run along the face's bands: the columns (or rows) first
+stretched along themselves so that the stripes keep their width across them (the one
+resampling, alike in every column), then each moved a whole number of pixels, wrapping, so no
+pixel is blurred across the columns and the wrap's seam runs along the stripes (it reads as one
+more band boundary). The segmentation and the identity channels are sheared alike (nearest
+pixel), and the fill's source positions are mapped back to the exemplar's own pixels.
 """
 
 from __future__ import annotations
