@@ -30,6 +30,7 @@ from osmap_cli.solid.layout import Layout
 from osmap_cli.solid.optimise import Optimisation, Polish, quality_scaled
 from osmap_cli.solid.structure.fill import Fill, fill
 from osmap_cli.solid.structure.method import add_detail, build_structure, finish, plan
+from osmap_cli.solid.structure.sheared import sheared_exemplars
 from osmap_cli.texture.histogram import match_quantiles
 
 if TYPE_CHECKING:
@@ -91,6 +92,7 @@ def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
                            found.summary())
     built = build_structure(found, task.shapes[0], task.seed, task.tileable)
     structure_seconds = time.perf_counter() - started
+    task, found, unsheared = sheared_exemplars(task, found)
     if found.kind == "particles":
         found = replace(found, ex_labels=_fill_labels(found, task.tileable))
     voxels, source = fill(task, found.ex_labels, found.ex_identity, built.labels,
@@ -105,6 +107,7 @@ def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
     # the per-phase matching moves the low-pass only; this one gives back the exemplar's
     # extreme colours that the optimisation's averaging loses
     voxels = match_quantiles(voxels, pixels, options.final_histogram)
+    source = unsheared(source)
     seconds = time.perf_counter() - started
     report = (*found.report(), f"structure step {structure_seconds:.1f} s of "
               f"{seconds:.1f} s (analysis and model {found.seconds:.1f} s)")
