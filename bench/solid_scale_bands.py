@@ -88,8 +88,8 @@ def stages(name: str, side: int, seed: int, fill_changes: dict):
     from osmap_cli.solid.method_structure import Options, _fill_labels
     from osmap_cli.solid.pipeline import build_pyramid, plan_levels
     from osmap_cli.solid.structure import fill as fl
-    from osmap_cli.solid.structure.analysis import enlarge
     from osmap_cli.solid.structure import method as sm
+    from osmap_cli.solid.structure.analysis import enlarge
     from osmap_cli.solid.structure.particle_colour import match_particles
     from osmap_cli.solid.structure.profiles import profile_ids
     from osmap_cli.texture.histogram import match_quantiles
