@@ -39,6 +39,7 @@ STRETCHES = (1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0)  # noise_detail's grain, candi
 # decorrelate_structure's neighbourhoods (Gaussian sigmas), in the exemplar's mean chord (the
 # mean run of one phase along its rows and columns): about one particle, and half of one
 STRUCTURE_SCALES = (0.5, 1.0)
+SLOPE_STEP = 4  # decorrelate_phases reads its slopes on every this-many-th slice
 
 
 @dataclass(frozen=True)
@@ -424,11 +425,11 @@ def _plane_blur(values: np.ndarray, sigma: float, axes, wrap: bool) -> np.ndarra
     if pad:
         width = [(pad, pad) if a in axes else (0, 0) for a in range(values.ndim)]
         values = np.pad(values, width, mode="reflect")
-    out = values.astype(np.float64)
+    out = values.astype(np.float32)  # a smooth average: single precision does
     for a in axes:
         n = out.shape[a]
         f = np.fft.rfftfreq(n)
-        gain = np.exp(-2.0 * (np.pi * sigma * f) ** 2).reshape(
+        gain = np.exp(-2.0 * (np.pi * sigma * f) ** 2).astype(np.float32).reshape(
             [-1 if k == a else 1 for k in range(out.ndim)])
         out = np.fft.irfft(np.fft.rfft(out, axis=a) * gain, n, axis=a)
     if pad:
@@ -462,18 +463,28 @@ def _slopes(dev: np.ndarray, fraction: np.ndarray) -> np.ndarray:
 
 
 def decorrelate_phases(voxels: np.ndarray, labels: np.ndarray, exemplars, ex_of_axis,
-                       ex_labels, sigma: float, wrap: bool = False) -> np.ndarray:
+                       ex_labels, sigma: float, wrap: bool = False,
+                       phases=None) -> np.ndarray:
     """voxels with each phase's colour depending on the structure around it no more than in
     the exemplar: within a Gaussian of `sigma` in the slices' planes, the phase's local mean
     colour is regressed on the phase's local share of the cells (how crowded its particles
     are, how much matrix pools there), on the exemplar's pixels and on the volume's slices of
-    the three families; where the volume's slope is steeper than the exemplar's (of the same
-    sign), the excess is taken out (never added). The fill reads the structure's coarse
-    layout into its colours: particles darken where the matrix is plentiful, and the volume's
-    slices gain coarse contrast the exemplar lacks."""
+    the three families (every SLOPE_STEP-th slice: the slope is a global figure); where the
+    volume's slope is steeper than the exemplar's (of the same sign), the excess is taken out
+    (never added). The fill reads the structure's coarse layout into its colours: particles
+    darken where the matrix is plentiful, and the volume's slices gain coarse contrast the
+    exemplar lacks. phases: the labels to treat (all by default)."""
     used = sorted(set(int(e) for e in ex_of_axis))
     out = voxels.astype(np.float64)
-    for value in np.unique(labels):
+    values = np.unique(labels)
+    shares = []  # every phase's share of the cells around each voxel, the slices' mean
+    for value in values[:-1]:
+        shares.append(sum(_plane_blur(labels == value, sigma, axes, wrap)
+                          for axes in PLANE_AXES) / 3.0)
+    shares.append(1.0 - sum(shares))  # the shares add up to one
+    for value, share in zip(values, shares):
+        if phases is not None and value not in phases:
+            continue
         inside = labels == value
         devs, fracs = [], []
         for e in used:
@@ -485,24 +496,31 @@ def decorrelate_phases(voxels: np.ndarray, labels: np.ndarray, exemplars, ex_of_
         if not devs or inside.sum() < 2 or inside.all():
             continue
         want = _slopes(np.concatenate(devs), np.concatenate(fracs))
-        shares, have = [], []
+        have = []
         for axes in PLANE_AXES:
-            share = _plane_blur(inside.astype(np.float64), sigma, axes, wrap)
-            dev = _local_deviation(out, inside, sigma, axes, wrap)
-            have.append(_slopes(dev[inside], share[inside]))
-            shares.append(share[inside])
+            normal = 3 - sum(axes)
+            pick = np.arange(0, inside.shape[normal], SLOPE_STEP)
+            some = np.take(inside, pick, normal)
+            if some.sum() > 1 and not some.all():
+                dev = _local_deviation(np.take(out, pick, normal), some, sigma, axes, wrap)
+                part = _plane_blur(some.astype(np.float64), sigma, axes, wrap)
+                have.append(_slopes(dev[some], part[some]))
+        if not have:
+            continue
         have = np.mean(have, 0)
         target = np.clip(want, np.minimum(have, 0.0), np.maximum(have, 0.0))
-        share = np.mean(shares, 0)
+        share = share[inside]
         out[inside] -= (share - share.mean())[:, None] * (have - target)
     return out.astype(np.float32)
 
 
-def decorrelate_structure(voxels: np.ndarray, labels: np.ndarray, exemplars, ex_of_axis,
+def decorrelate_particles(voxels: np.ndarray, labels: np.ndarray, exemplars, ex_of_axis,
                           ex_labels, wrap: bool = False) -> np.ndarray:
-    """decorrelate_phases at STRUCTURE_SCALES times the exemplars' mean chord, finest first."""
+    """decorrelate_phases on the particles (label 1; the matrix keeps its colours: where it
+    pools it is as dark in the exemplar) at STRUCTURE_SCALES times the exemplars' mean chord,
+    finest first."""
     chord = float(np.mean([mean_chord(np.asarray(lb)) for lb in ex_labels]))
     for factor in STRUCTURE_SCALES:
         voxels = decorrelate_phases(voxels, labels, exemplars, ex_of_axis, ex_labels,
-                                    factor * chord, wrap)
+                                    factor * chord, wrap, phases=(1,))
     return voxels

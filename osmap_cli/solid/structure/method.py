@@ -25,7 +25,7 @@ from osmap_cli.solid.structure import layers as ly
 from osmap_cli.solid.structure import particles as pt
 from osmap_cli.solid.structure import sheets as sh
 from osmap_cli.solid.structure.fill import (
-    decorrelate_structure,
+    decorrelate_particles,
     match_phases,
     match_regions,
     noise_detail,
@@ -285,7 +285,7 @@ def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np
         matched = match_particles(matched, built.regions, built.region_sources,
                                   found.model[0].spreads, built.coverage[..., 1],
                                   pixels.min(0), pixels.max(0))
-        matched = decorrelate_structure(matched, built.labels, found.images, found.ex_of_axis,
+        matched = decorrelate_particles(matched, built.labels, found.images, found.ex_of_axis,
                                         found.ex_labels, wrap)
     return (voxels + strength * (matched - voxels)).astype(np.float32)
 
