@@ -66,3 +66,14 @@ def test_colours_independent_of_the_crowding_stay():
     flat = np.where(labels[..., None] == 1, 0.6, voxels).astype(np.float32)
     out = decorrelate_particles(flat, labels, [image], np.zeros(3, np.int64), [ex_labels])
     assert np.abs(out - flat).max() < 0.02
+
+
+def test_sparse_particles_keep_their_colours():
+    rng = np.random.default_rng(5)
+    image, ex_labels = _exemplar(rng)
+    sparse = np.zeros_like(ex_labels)
+    sparse[2::8, 2::8] = 1  # chips apart in a continuous matrix
+    sparse = sparse | np.roll(sparse, 1, 0) | np.roll(sparse, 1, 1)
+    voxels, labels = _volume(rng)
+    out = decorrelate_particles(voxels, labels, [image], np.zeros(3, np.int64), [sparse])
+    assert np.array_equal(out, voxels)

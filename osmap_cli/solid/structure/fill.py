@@ -27,6 +27,7 @@ from osmap_cli.solid.structure.noise import (
     oriented_field,
     slice_matched_spectrum,
 )
+from osmap_cli.solid.structure.particles import DENSE
 from osmap_cli.solid.structure.segment import gaussian_blur
 from osmap_cli.texture.pyramid import resize
 
@@ -516,9 +517,14 @@ def decorrelate_phases(voxels: np.ndarray, labels: np.ndarray, exemplars, ex_of_
 
 def decorrelate_particles(voxels: np.ndarray, labels: np.ndarray, exemplars, ex_of_axis,
                           ex_labels, wrap: bool = False) -> np.ndarray:
-    """decorrelate_phases on the particles (label 1; the matrix keeps its colours: where it
+    """decorrelate_phases on packed particles (label 1; the matrix keeps its colours: where it
     pools it is as dark in the exemplar) at STRUCTURE_SCALES times the exemplars' mean chord,
-    finest first."""
+    finest first. Sparse particles (the exemplars' particle fraction at most DENSE) are left as
+    they are: they lie apart in a continuous matrix, where how crowded they are is their layout,
+    not matrix pooling between packed stones (measured: on terrazzo at 64^3 the step moved the
+    profile meter's worst error from 0.08 to 0.11)."""
+    if np.mean([np.mean(np.asarray(lb) == 1) for lb in ex_labels]) <= DENSE:
+        return voxels
     chord = float(np.mean([mean_chord(np.asarray(lb)) for lb in ex_labels]))
     for factor in STRUCTURE_SCALES:
         voxels = decorrelate_phases(voxels, labels, exemplars, ex_of_axis, ex_labels,
