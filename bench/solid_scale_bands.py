@@ -1,6 +1,7 @@
 """Where a particle volume's spectrum departs from its exemplar's, stage by stage: method
 structure's steps run one by one (the built structure in flat colours, the fill, the per-phase
-matching, the particles' colours, the residual detail, the final histogram), and after each the
+matching, the particles' mean colours, their colour distributions, their decorrelation from the
+packing's crowding, the residual detail, the final histogram), and after each the
 luminance (CIELAB L*) power of the volume's slices (8 per axis, Welch windows as texmetrics'
 scale) is compared with the exemplar's band by band (octaves of period). Also the colour
 variance split of the particles: between their mean colours, within them, and the matrix's.
@@ -128,8 +129,9 @@ def stages(name: str, side: int, seed: int, fill_changes: dict):
     matched = match_particles(matched, built.regions, built.region_sources,
                               found.model[0].spreads, built.coverage[..., 1],
                               pixels.min(0), pixels.max(0))
+    out.append(("particles", matched))
     finished = sm.finish(voxels, found, built, params.phase_match, wrap)
-    out.append(("particles", finished))
+    out.append(("decorrelated", finished))
     detailed = sm.add_detail(finished, source, found, built, task.exemplars(0),
                              task.ex_of_axis, params.detail, task.seed, wrap)
     out.append(("detail", detailed))
