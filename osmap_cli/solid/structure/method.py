@@ -285,8 +285,9 @@ def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np
         matched = match_particles(matched, built.regions, built.region_sources,
                                   found.model[0].spreads, built.coverage[..., 1],
                                   pixels.min(0), pixels.max(0))
-        matched = decorrelate_particles(matched, built.labels, found.images, found.ex_of_axis,
-                                        found.ex_labels, wrap)
+        if not any(an.reads_as_cells(a) for a in found.analyses):  # cells pool no matrix
+            matched = decorrelate_particles(matched, built.labels, found.images,
+                                            found.ex_of_axis, found.ex_labels, wrap)
     return (voxels + strength * (matched - voxels)).astype(np.float32)
 
 
