@@ -37,7 +37,7 @@ QUANTILES = 257  # points of each phase's quantile mapping
 DETAIL_SIGMA = 1.0  # pixels: the residual detail is what a Gaussian this wide removes
 SPECTRUM_BINS = 32  # radial bins (0 to RADIAL_TOP cycles per pixel) of noise_detail's spectra
 STRETCHES = (1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0)  # noise_detail's grain, candidates
-# decorrelate_structure's neighbourhoods (Gaussian sigmas), in the exemplar's mean chord (the
+# decorrelate_particles' neighbourhoods (Gaussian sigmas), in the exemplar's mean chord (the
 # mean run of one phase along its rows and columns): about one particle, and half of one
 STRUCTURE_SCALES = (0.5, 1.0)
 SLOPE_STEP = 4  # decorrelate_phases reads its slopes on every this-many-th slice
@@ -454,7 +454,6 @@ def mean_chord(labels: np.ndarray) -> float:
     runs = (np.count_nonzero(np.diff(labels, axis=0)) + labels.shape[1]
             + np.count_nonzero(np.diff(labels, axis=1)) + labels.shape[0])
     return 2.0 * labels.size / runs
-
 
 
 def _slopes(dev: np.ndarray, fraction: np.ndarray) -> np.ndarray:
