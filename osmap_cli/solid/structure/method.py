@@ -25,6 +25,7 @@ from osmap_cli.solid.structure import layers as ly
 from osmap_cli.solid.structure import particles as pt
 from osmap_cli.solid.structure import sheets as sh
 from osmap_cli.solid.structure.fill import (
+    decorrelate_particles,
     match_phases,
     match_regions,
     noise_detail,
@@ -284,6 +285,9 @@ def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np
         matched = match_particles(matched, built.regions, built.region_sources,
                                   found.model[0].spreads, built.coverage[..., 1],
                                   pixels.min(0), pixels.max(0))
+        if not any(an.reads_as_cells(a) for a in found.analyses):  # cells pool no matrix
+            matched = decorrelate_particles(matched, built.labels, found.images,
+                                            found.ex_of_axis, found.ex_labels, wrap)
     return (voxels + strength * (matched - voxels)).astype(np.float32)
 
 

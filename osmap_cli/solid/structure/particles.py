@@ -296,8 +296,9 @@ def initial_params(sources: ParticleSources) -> ParticleParams:
     density = t.fraction / (0.7 * 4.0 / 3.0 * math.pi * r3)
     gap = float(np.clip(sources.gap, MIN_GAP, MAX_GAP)) if dense else MIN_GAP
     # dense: no cutting planes (a cut particle leaves a pocket of matrix in its cell, wider than
-    # the exemplar's gaps, which a cut through the volume shows as a stone-less blotch)
-    return ParticleParams(density=density, size=size, gap=gap, exclusion=0.6 if dense else 0.7,
+    # the exemplar's gaps, which a cut through the volume shows as a stone-less blotch); one
+    # exclusion for both: at 0.6 packed stones crowd and pool, coarse contrast the scale reads
+    return ParticleParams(density=density, size=size, gap=gap, exclusion=0.7,
                           cut=1.0 if dense else 0.5)
 
 
