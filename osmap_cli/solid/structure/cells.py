@@ -19,6 +19,7 @@ per cell), so the fill and the colour matching treat cells as they treat particl
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -26,6 +27,7 @@ import numpy as np
 
 from osmap_cli.solid.structure import particles as pt
 from osmap_cli.solid.structure.analysis import PACKED_CELLS
+from osmap_cli.solid.structure.segment import smooth_volume
 from osmap_kernels.cells import power_cells
 from osmap_kernels.structure import place_spheres
 
@@ -41,6 +43,8 @@ MIN_CELL = 27.0  # voxels per cell at the least (a 3-voxel cube)
 # mean, which the few profiles a 1-voxel wall fails to part on a diagonal cut of the probe
 # inflate (the fit then made the cells 0.85-0.9 of the exemplar's size)
 FITTED = ("fraction", "d50", "d90")
+FOOTPRINT = 1.0  # voxels: the width across a wall that a voxel's colour averages (coverage)
+WALL_SIGMA = 1.0  # voxels: the walls' local colour is their voxels' Gaussian mean this wide
 
 
 @dataclass(frozen=True)
@@ -132,9 +136,11 @@ def relax(shape, centres, weights, wrap: bool, steps: int, step: float = 2.0):
     return centres
 
 
+@functools.lru_cache(maxsize=4)
 def seeds(shape, count: int, params: CellParams, seed: int, wrap: bool):
-    """(centres (N, 3), power weights (N,)): a hard-core set of `count` seeds relaxed by
-    params.lloyd Lloyd steps."""
+    """(centres (N, 3), power weights (N,)), read-only: a hard-core set of `count` seeds
+    relaxed by params.lloyd Lloyd steps. Remembered for the last few calls: the walls'
+    antialiasing (soften_walls) labels the volume's voxels again after its fill."""
     volume = float(np.prod(shape))
     radius = (HARD_CORE * volume / count / (4.0 / 3.0 * math.pi)) ** (1.0 / 3.0)
     radii = np.full(count, radius)
@@ -144,6 +150,8 @@ def seeds(shape, count: int, params: CellParams, seed: int, wrap: bool):
     spacing = (volume / count) ** (1.0 / 3.0)
     weights = (params.spread * spacing) ** 2 * rng.random(count)
     centres = relax(shape, centres, weights, wrap, params.lloyd)
+    centres.setflags(write=False)
+    weights.setflags(write=False)
     return centres, weights
 
 
@@ -162,23 +170,71 @@ def source_draw(sources: pt.ParticleSources, count: int, rng) -> np.ndarray:
     return rng.permutation(draws)
 
 
-def build(shape, params: CellParams, sources: pt.ParticleSources, seed: int, wrap: bool,
-          factor: float = 1.0) -> pt.Particles:
-    """The cells of a (Z, Y, X) volume (periodic with wrap), as particles: owner (-1 in the
-    walls), sdf (distance to the wall less half its width, positive inside a cell) and each
-    cell's source profile; `factor` as for particles.build."""
+def tessellation(shape, params: CellParams, seed: int, wrap: bool, factor: float = 1.0):
+    """(cell int32 (Z, Y, X): every voxel's cell, walls included; sdf float32: the distance
+    to the nearest wall less half its width, positive inside a cell; the wall width in voxels;
+    the number of cells) of a (Z, Y, X) volume (periodic with wrap)."""
+    shape = tuple(int(s) for s in shape)
     volume = float(np.prod(shape))
     count = max(2, min(int(round(params.density * factor ** 3 * volume)),
                        int(volume // MIN_CELL)))
     # the seeds of a periodic set, also for a volume that does not wrap: relaxed within the
     # volume's faces, the cells along them grow (their seeds move inwards)
     centres, weights = seeds(shape, count, params, seed, True)
-    owner, wall = laguerre(shape, centres, weights, wrap)
+    cell, wall = laguerre(shape, centres, weights, wrap)
     gap = max(params.gap / factor, pt.FINAL_GAP)
-    sdf = (wall - 0.5 * gap).astype(np.float32)
-    owner = np.where(sdf > 0, owner, -1).astype(np.int32)
+    return cell, (wall - 0.5 * gap).astype(np.float32), gap, count
+
+
+def build(shape, params: CellParams, sources: pt.ParticleSources, seed: int, wrap: bool,
+          factor: float = 1.0) -> pt.Particles:
+    """The cells of a (Z, Y, X) volume (periodic with wrap), as particles: owner (-1 in the
+    walls), sdf (distance to the wall less half its width, positive inside a cell) and each
+    cell's source profile; `factor` as for particles.build."""
+    cell, sdf, _, count = tessellation(shape, params, seed, wrap, factor)
+    owner = np.where(sdf > 0, cell, -1).astype(np.int32)
     pick = source_draw(sources, count, np.random.default_rng(seed + 1))
     return pt.Particles(owner, sdf, pick)
+
+
+def wall_coverage(sdf: np.ndarray, gap: float) -> np.ndarray:
+    """float32: the wall's share of every voxel, from its centre's distance to the wall's
+    middle plane (sdf + gap / 2): the overlap of the wall (`gap` wide) with a window FOOTPRINT
+    wide across it. At least one half exactly in the wall's voxels (sdf <= 0)."""
+    d = sdf.astype(np.float64) + 0.5 * gap
+    half = 0.5 * FOOTPRINT
+    over = np.minimum(d + half, 0.5 * gap) - np.maximum(d - half, -0.5 * gap)
+    return np.clip(over / FOOTPRINT, 0.0, 1.0).astype(np.float32)
+
+
+def soften_walls(voxels: np.ndarray, found, seed: int, wrap: bool) -> np.ndarray:
+    """voxels (a filled volume of `found`'s structure, method.Plan) with antialiased walls
+    when the structure is packed cells (else unchanged): the fill paints every voxel wall or
+    cell, so a wall at an angle to the axes steps along them. Each voxel takes the wall's
+    share of it (wall_coverage, from the power diagram's planes: exact, no staircase) of the
+    wall colour and the rest of its cell's: a wall voxel moves towards its own cell's mean
+    colour (the cell on its side of the wall), a cell voxel towards the walls' local colour
+    (the Gaussian mean of the wall voxels near it, WALL_SIGMA). The walls' mean share of the
+    volume is kept: what a wall voxel gives up, its neighbours across the wall take."""
+    if found.kind != "particles" or not isinstance(found.model[1], CellParams):
+        return voxels
+    _, params, factor = found.model
+    cell, sdf, gap, count = tessellation(voxels.shape[:3], params, seed, wrap, factor)
+    cover = wall_coverage(sdf, gap)[..., None]
+    inwall = (sdf <= 0)[..., None]
+    flat = voxels.reshape(-1, voxels.shape[3]).astype(np.float64)
+    inside = ~inwall.ravel()
+    lab = cell.ravel()[inside]
+    area = np.bincount(lab, minlength=count)
+    means = np.stack([np.bincount(lab, flat[inside, c], count) for c in range(flat.shape[1])],
+                     1) / np.maximum(area, 1)[:, None]
+    own = np.where((area[cell] > 0)[..., None], means[cell], voxels).astype(np.float32)
+    weight = smooth_volume(inwall.astype(np.float32), WALL_SIGMA, wrap)
+    local = smooth_volume(np.where(inwall, voxels, 0.0).astype(np.float32), WALL_SIGMA, wrap)
+    wall_colour = np.where(weight > 1e-3, local / np.maximum(weight, 1e-3), voxels)
+    softened = np.where(inwall, cover * voxels + (1.0 - cover) * own,
+                        (1.0 - cover) * voxels + cover * wall_colour)
+    return softened.astype(np.float32)
 
 
 def initial_params(sources: pt.ParticleSources) -> CellParams:
