@@ -84,10 +84,10 @@ def laguerre(shape, centres, weights, wrap: bool, step: float = 1.0):
 
 def _candidates(mids, centres, weights, size, wrap: bool, half: float):
     """(candidates int64 (B, K), counts (B,)): for every block centre `mids` (B, 3) of half
-    diagonal `half`, its nearest seeds in order of distance, CANDIDATES of them or more, until
-    a seed left out is farther from every voxel of the block than the second nearest taken one
-    is from any of them (power weights widen the bound). Worked in chunks of blocks, so that
-    the block-by-seed distances stay small whatever the volume's size."""
+    diagonal `half`, its nearest seeds in order of distance: CANDIDATES of them, and every seed
+    that could be nearer to a voxel of the block than the second nearest seed is to any of
+    them (power weights widen the bound). Worked in chunks of blocks, so that the block-by-seed
+    distances stay small whatever the volume's size."""
     n = len(centres)
     wmax = float(weights.max() - weights.min())
     chunk = max(1, CHUNK // max(n, 1))
@@ -98,18 +98,15 @@ def _candidates(mids, centres, weights, size, wrap: bool, half: float):
         if wrap:
             d -= size * np.round(d / size)
         dist = np.sqrt((d * d).sum(-1))
-        order = np.argsort(dist, axis=1, kind="stable")
-        near = np.take_along_axis(dist, order, 1)
-        reach = np.sqrt(near[:, min(1, n - 1)] ** 2 + wmax) + 2.0 * half
-        part = counts[start:start + chunk]
-        take = min(n, CANDIDATES)
-        left = np.ones(len(order), bool)
-        while left.any():
-            ok = left & ((near[:, take] >= reach) if take < n else True)
-            part[ok] = take
-            left &= ~ok
-            take = min(n, 2 * take)
-        orders.append(order[:, :part.max()])
+        second = np.partition(dist, min(1, n - 1), axis=1)[:, min(1, n - 1)]
+        reach = np.sqrt(second ** 2 + wmax) + 2.0 * half
+        part = np.maximum((dist < reach[:, None]).sum(1), min(n, CANDIDATES))
+        counts[start:start + chunk] = part
+        take = int(part.max())
+        nearest = (np.argpartition(dist, take - 1, axis=1)[:, :take] if take < n else
+                   np.broadcast_to(np.arange(n), dist.shape))
+        order = np.argsort(np.take_along_axis(dist, nearest, 1), axis=1, kind="stable")
+        orders.append(np.take_along_axis(nearest, order, 1))
     candidates = np.zeros((len(mids), counts.max()), np.int64)
     for start, order in zip(range(0, len(mids), chunk), orders):
         candidates[start:start + len(order), :order.shape[1]] = order
