@@ -205,18 +205,26 @@ def wall_coverage(sdf: np.ndarray, gap: float) -> np.ndarray:
 
 
 def soften_walls(voxels: np.ndarray, found, seed: int, wrap: bool) -> np.ndarray:
-    """voxels (a filled volume of `found`'s structure, method.Plan) with antialiased walls
-    when the structure is packed cells (else unchanged): the fill paints every voxel wall or
-    cell, so a wall at an angle to the axes steps along them. Each voxel takes the wall's
-    share of it (wall_coverage, from the power diagram's planes: exact, no staircase) of the
-    wall colour and the rest of its cell's: a wall voxel moves towards its own cell's mean
-    colour (the cell on its side of the wall), a cell voxel towards the walls' local colour
-    (the Gaussian mean of the wall voxels near it, WALL_SIGMA). The walls' mean share of the
-    volume is kept: what a wall voxel gives up, its neighbours across the wall take."""
+    """voxels (a filled volume of `found`'s structure, method.Plan, built with `seed`) with
+    antialiased walls (antialiased) when the structure is packed cells, else unchanged."""
     if found.kind != "particles" or not isinstance(found.model[1], CellParams):
         return voxels
     _, params, factor = found.model
-    cell, sdf, gap, count = tessellation(voxels.shape[:3], params, seed, wrap, factor)
+    cell, sdf, gap, _ = tessellation(voxels.shape[:3], params, seed, wrap, factor)
+    return antialiased(voxels, cell, sdf, gap, wrap)
+
+
+def antialiased(voxels: np.ndarray, cell: np.ndarray, sdf: np.ndarray, gap: float,
+                wrap: bool) -> np.ndarray:
+    """voxels (Z, Y, X, C) of a tessellation (tessellation's cell, sdf and gap) whose every
+    voxel the fill painted wall (sdf <= 0) or cell, with antialiased walls: painted so, a wall
+    at an angle to the axes steps along them. Each voxel takes the wall's share of it
+    (wall_coverage, from the power diagram's planes: exact, no staircase) of the wall colour
+    and the rest of its cell's: a wall voxel moves towards its own cell's mean colour (the
+    cell on its side of the wall), a cell voxel towards the walls' local colour (the Gaussian
+    mean of the wall voxels near it, WALL_SIGMA). The walls' share of the volume is kept: what
+    a wall voxel gives up, its neighbours across the wall take."""
+    count = int(cell.max()) + 1
     cover = wall_coverage(sdf, gap)[..., None]
     inwall = (sdf <= 0)[..., None]
     flat = voxels.reshape(-1, voxels.shape[3]).astype(np.float64)
