@@ -225,21 +225,23 @@ def antialiased(voxels: np.ndarray, cell: np.ndarray, sdf: np.ndarray, gap: floa
     mean of the wall voxels near it, WALL_SIGMA). The walls' share of the volume is kept: what
     a wall voxel gives up, its neighbours across the wall take."""
     count = int(cell.max()) + 1
-    cover = wall_coverage(sdf, gap)[..., None]
-    inwall = (sdf <= 0)[..., None]
-    flat = voxels.reshape(-1, voxels.shape[3]).astype(np.float64)
-    inside = ~inwall.ravel()
-    lab = cell.ravel()[inside]
+    cover = wall_coverage(sdf, gap)
+    inwall = sdf <= 0
+    lab = cell[~inwall]
     area = np.bincount(lab, minlength=count)
-    means = np.stack([np.bincount(lab, flat[inside, c], count) for c in range(flat.shape[1])],
-                     1) / np.maximum(area, 1)[:, None]
-    own = np.where((area[cell] > 0)[..., None], means[cell], voxels).astype(np.float32)
+    has_cell = area[cell] > 0  # a cell left without a voxel of its own keeps its walls' colour
     weight = smooth_volume(inwall.astype(np.float32), WALL_SIGMA, wrap)
-    local = smooth_volume(np.where(inwall, voxels, 0.0).astype(np.float32), WALL_SIGMA, wrap)
-    wall_colour = np.where(weight > 1e-3, local / np.maximum(weight, 1e-3), voxels)
-    softened = np.where(inwall, cover * voxels + (1.0 - cover) * own,
-                        (1.0 - cover) * voxels + cover * wall_colour)
-    return softened.astype(np.float32)
+    near = weight > 1e-3
+    out = np.empty(voxels.shape, np.float32)
+    for c in range(voxels.shape[3]):  # a channel at a time: a 256^3 volume's copies stay small
+        v = voxels[..., c]
+        mean = (np.bincount(lab, v[~inwall], count) / np.maximum(area, 1)).astype(np.float32)
+        own = np.where(has_cell, mean[cell], v)
+        local = smooth_volume(np.where(inwall, v, 0.0), WALL_SIGMA, wrap)
+        wall = np.where(near, local / np.maximum(weight, 1e-3), v)
+        out[..., c] = np.where(inwall, cover * v + (1.0 - cover) * own,
+                               (1.0 - cover) * v + cover * wall)
+    return out
 
 
 def initial_params(sources: pt.ParticleSources) -> CellParams:
