@@ -133,11 +133,17 @@ def relax(shape, centres, weights, wrap: bool, steps: int, step: float = 2.0):
     return centres
 
 
-@functools.lru_cache(maxsize=4)
 def seeds(shape, count: int, params: CellParams, seed: int, wrap: bool):
-    """(centres (N, 3), power weights (N,)), read-only: a hard-core set of `count` seeds
-    relaxed by params.lloyd Lloyd steps. Remembered for the last few calls: the walls'
-    antialiasing (soften_walls) labels the volume's voxels again after its fill."""
+    """(centres (N, 3), power weights (N,)): a hard-core set of `count` seeds relaxed by
+    params.lloyd Lloyd steps. Remembered for the last few calls (copies are returned): the
+    walls' antialiasing (soften_walls) labels the volume's voxels again after its fill."""
+    centres, weights = _seeds(tuple(int(s) for s in shape), int(count), params, int(seed),
+                              bool(wrap))
+    return centres.copy(), weights.copy()
+
+
+@functools.lru_cache(maxsize=4)
+def _seeds(shape, count: int, params: CellParams, seed: int, wrap: bool):
     volume = float(np.prod(shape))
     radius = (HARD_CORE * volume / count / (4.0 / 3.0 * math.pi)) ** (1.0 / 3.0)
     radii = np.full(count, radius)
@@ -146,10 +152,7 @@ def seeds(shape, count: int, params: CellParams, seed: int, wrap: bool):
     rng = np.random.default_rng(seed)
     spacing = (volume / count) ** (1.0 / 3.0)
     weights = (params.spread * spacing) ** 2 * rng.random(count)
-    centres = relax(shape, centres, weights, wrap, params.lloyd)
-    centres.setflags(write=False)
-    weights.setflags(write=False)
-    return centres, weights
+    return relax(shape, centres, weights, wrap, params.lloyd), weights
 
 
 def source_draw(sources: pt.ParticleSources, count: int, rng) -> np.ndarray:
