@@ -96,11 +96,11 @@ def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
         found = replace(found, ex_labels=_fill_labels(found, task.tileable))
     voxels, source = fill(task, found.ex_labels, found.ex_identity, built.labels,
                           built.identity, options.fill, progress)
-    voxels = soften_walls(voxels, found, task.seed, task.tileable)
     voxels = finish(voxels, found, built, options.fill.phase_match, task.tileable)
     voxels = add_detail(voxels, source, found, built, task.exemplars(0), task.ex_of_axis,
                         options.fill.detail, task.seed, task.tileable, options.fill.vein_detail,
                         options.fill.vein_grain)
+    voxels = soften_walls(voxels, found, task.seed, task.tileable)
     pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])
     # the detail added to a colour near the exemplar's darkest or lightest leaves its range
     voxels = np.clip(voxels, pixels.min(0), pixels.max(0))
