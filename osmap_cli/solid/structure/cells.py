@@ -11,10 +11,13 @@ cells' sizes. A few rounds of build, cut and measure (as particles.fit) fit the 
 to the exemplar's profile sizes and the wall width to its area fraction.
 
 The result is a particles.Particles record (owner, signed distance to the wall, source profile
-per cell), so the fill and the colour matching treat cells as they treat particles.
+per cell), so the fill and the colour matching treat cells as they treat particles. The fill
+paints every voxel wall or cell; soften_walls then gives each voxel the wall's exact share of it
+(the walls are planes), so walls at an angle to the axes do not step along them.
 
 >>> params, _ = fit(sources, seed=1, factor=2)
 >>> built = build((64, 64, 64), params, sources, seed=1, wrap=False, factor=2)
+>>> voxels = soften_walls(filled_voxels, found, seed=1, wrap=False)  # found: method.Plan
 """
 
 from __future__ import annotations
