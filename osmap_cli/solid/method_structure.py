@@ -28,6 +28,7 @@ from osmap_cli.solid import method_osmap
 from osmap_cli.solid.core import SolidResult, SolidTask
 from osmap_cli.solid.layout import Layout
 from osmap_cli.solid.optimise import Optimisation, Polish, quality_scaled
+from osmap_cli.solid.structure.cells import soften_walls
 from osmap_cli.solid.structure.fill import Fill, fill
 from osmap_cli.solid.structure.method import add_detail, build_structure, finish, plan
 from osmap_cli.solid.structure.sheared import sheared_exemplars
@@ -101,6 +102,7 @@ def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
     voxels = add_detail(voxels, source, found, built, task.exemplars(0), task.ex_of_axis,
                         options.fill.detail, task.seed, task.tileable, options.fill.vein_detail,
                         options.fill.vein_grain)
+    voxels = soften_walls(voxels, found, task.seed, task.tileable)
     pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])
     # the detail added to a colour near the exemplar's darkest or lightest leaves its range
     voxels = np.clip(voxels, pixels.min(0), pixels.max(0))
