@@ -155,7 +155,7 @@ def run(names, sides, methods, sheet=None, seed=1, changes=None, log=print, fill
                                                                    else 0], voxels)
                     row = {"name": name, "side": side, "ex_side": ex_side, "method": method,
                            "seconds": seconds, "structure_s": structure_s,
-                           "kind": next((r.split(": ")[1] for r in report
+                           "kind": next((r.split(": ")[1].split(" (")[0] for r in report
                                          if r.startswith("structure built")), ""), **figures}
                     rows.append(row)
                     log(_row(row))
