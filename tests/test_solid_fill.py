@@ -3,7 +3,8 @@ crowded its surroundings are more than the exemplar's does (decorrelate_particle
 
 import numpy as np
 
-from osmap_cli.solid.structure.fill import PLANE_AXES, _plane_blur, decorrelate_particles
+from osmap_cli.solid.structure.crowding import decorrelate_particles, plane_blur
+from osmap_cli.solid.structure.fill import PLANE_AXES
 
 
 def _exemplar(rng, side=64):
@@ -24,7 +25,7 @@ def _volume(rng, side=32):
     gap = np.where(x < side // 2, 1, 4)
     period = 6 + gap
     labels = (((z % period) >= gap) & ((y % period) >= gap)).astype(np.int64)
-    share = _plane_blur(labels.astype(np.float64), 5.0, (1, 2), False)
+    share = plane_blur(labels.astype(np.float64), 5.0, (1, 2), False)
     grey = np.where(labels == 1, 0.3 + 0.4 * share + 0.05 * rng.standard_normal(labels.shape),
                     0.2)
     return np.repeat(grey[..., None], 3, 3).astype(np.float32), labels
@@ -35,8 +36,8 @@ def _slope(voxels, labels, sigma=5.0):
     inside = labels == 1
     out = []
     for axes in PLANE_AXES:
-        share = _plane_blur(inside.astype(np.float64), sigma, axes, False)[inside]
-        local = (_plane_blur(voxels[..., 0] * inside, sigma, axes, False)[inside]
+        share = plane_blur(inside.astype(np.float64), sigma, axes, False)[inside]
+        local = (plane_blur(voxels[..., 0] * inside, sigma, axes, False)[inside]
                  / np.maximum(share, 1e-3))
         x = share - share.mean()
         out.append(float((x * (local - local.mean())).sum() / (x * x).sum()))

@@ -10,12 +10,14 @@ One job a module:
   elongation);
 - analysis: what the exemplar shows: particles, layers, veins, a phase field or none
   (`analyse`);
-- particles, layers, sheets, field: the 3D structures and the fitting of their models
-  (stereology by simulation, band sequences, bands of a warped turbulent field, a truncated
-  Gaussian field); noise: smooth random fields;
+- particles, cells, layers, sheets, field: the 3D structures and the fitting of their models
+  (stereology by simulation, a Laguerre tessellation with antialiased walls, band sequences,
+  bands of a warped turbulent field, a truncated Gaussian field); noise: smooth random fields;
 - method: the analysis over the exemplars and the model fitted (`plan`), the volume's
   structure (`build_structure`), the final colour matching (`finish`);
-- fill: the guided slice-window optimisation that gives the structure its appearance;
+- fill: the guided slice-window optimisation that gives the structure its appearance, and
+  the residual detail; sheared: the exemplar sheared along the bands of a face that shows
+  layers at another angle; particle_colour, crowding: each particle's colours after the fill;
 - slices, meter, picture: cuts through volumes, the profile meter, the --analyse picture.
 
 This package imports nothing heavy at import time; STRUCTURES is the --structure choice list.

@@ -24,8 +24,8 @@ from osmap_cli.solid.structure import field as fd
 from osmap_cli.solid.structure import layers as ly
 from osmap_cli.solid.structure import particles as pt
 from osmap_cli.solid.structure import sheets as sh
+from osmap_cli.solid.structure.crowding import decorrelate_particles
 from osmap_cli.solid.structure.fill import (
-    decorrelate_particles,
     match_phases,
     match_regions,
     noise_detail,
