@@ -102,7 +102,7 @@ def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
     voxels = add_detail(voxels, source, found, built, task.exemplars(0), task.ex_of_axis,
                         options.fill.detail, task.seed, task.tileable, options.fill.vein_detail,
                         options.fill.vein_grain)
-    voxels = soften_walls(voxels, found, task.seed, task.tileable)
+    voxels = soften_walls(voxels, built.walls, task.tileable)
     pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])
     # the detail added to a colour near the exemplar's darkest or lightest leaves its range
     voxels = np.clip(voxels, pixels.min(0), pixels.max(0))

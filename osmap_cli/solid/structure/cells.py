@@ -11,18 +11,18 @@ cells' sizes. A few rounds of build, cut and measure (as particles.fit) fit the 
 to the exemplar's profile sizes and the wall width to its area fraction.
 
 The result is a particles.Particles record (owner, signed distance to the wall, source profile
-per cell), so the fill and the colour matching treat cells as they treat particles. The fill
-paints every voxel wall or cell; soften_walls then gives each voxel the wall's exact share of it
-(the walls are planes), so walls at an angle to the axes do not step along them.
+per cell, and the tessellation's Walls), so the fill and the colour matching treat cells as they
+treat particles. The fill paints every voxel wall or cell; soften_walls then gives each voxel
+the wall's exact share of it (the walls are planes), so walls at an angle to the axes do not
+step along them.
 
 >>> params, _ = fit(sources, seed=1, factor=2)
 >>> built = build((64, 64, 64), params, sources, seed=1, wrap=False, factor=2)
->>> voxels = soften_walls(filled_voxels, found, seed=1, wrap=False)  # found: method.Plan
+>>> voxels = soften_walls(filled_voxels, built.walls, wrap=False)
 """
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -140,15 +140,7 @@ def relax(shape, centres, weights, wrap: bool, steps: int, step: float = 2.0):
 
 def seeds(shape, count: int, params: CellParams, seed: int, wrap: bool):
     """(centres (N, 3), power weights (N,)): a hard-core set of `count` seeds relaxed by
-    params.lloyd Lloyd steps. Remembered for the last few calls (copies are returned): the
-    walls' antialiasing (soften_walls) labels the volume's voxels again after its fill."""
-    centres, weights = _seeds(tuple(int(s) for s in shape), int(count), params, int(seed),
-                              bool(wrap))
-    return centres.copy(), weights.copy()
-
-
-@functools.lru_cache(maxsize=4)
-def _seeds(shape, count: int, params: CellParams, seed: int, wrap: bool):
+    params.lloyd Lloyd steps."""
     volume = float(np.prod(shape))
     radius = (HARD_CORE * volume / count / (4.0 / 3.0 * math.pi)) ** (1.0 / 3.0)
     radii = np.full(count, radius)
@@ -175,10 +167,21 @@ def source_draw(sources: pt.ParticleSources, count: int, rng) -> np.ndarray:
     return rng.permutation(draws)
 
 
-def tessellation(shape, params: CellParams, seed: int, wrap: bool, factor: float = 1.0):
-    """(cell int32 (Z, Y, X): every voxel's cell, walls included; sdf float32: the distance
-    to the nearest wall less half its width, positive inside a cell; the wall width in voxels;
-    the number of cells) of a (Z, Y, X) volume (periodic with wrap)."""
+@dataclass(frozen=True)
+class Walls:
+    """A tessellation's walls: cell int32 (Z, Y, X), every voxel's cell, walls included; sdf
+    float32, the distance to the nearest wall less half its width (positive inside a cell);
+    gap, the wall width in voxels."""
+
+    cell: np.ndarray
+    sdf: np.ndarray
+    gap: float
+
+
+def tessellation(shape, params: CellParams, seed: int, wrap: bool,
+                 factor: float = 1.0) -> tuple[Walls, int]:
+    """(the walls, the number of cells) of a (Z, Y, X) volume's tessellation (periodic with
+    wrap)."""
     shape = tuple(int(s) for s in shape)
     volume = float(np.prod(shape))
     count = max(2, min(int(round(params.density * factor ** 3 * volume)),
@@ -188,18 +191,18 @@ def tessellation(shape, params: CellParams, seed: int, wrap: bool, factor: float
     centres, weights = seeds(shape, count, params, seed, True)
     cell, wall = laguerre(shape, centres, weights, wrap)
     gap = max(params.gap / factor, pt.FINAL_GAP)
-    return cell, (wall - 0.5 * gap).astype(np.float32), gap, count
+    return Walls(cell, (wall - 0.5 * gap).astype(np.float32), gap), count
 
 
 def build(shape, params: CellParams, sources: pt.ParticleSources, seed: int, wrap: bool,
           factor: float = 1.0) -> pt.Particles:
     """The cells of a (Z, Y, X) volume (periodic with wrap), as particles: owner (-1 in the
-    walls), sdf (distance to the wall less half its width, positive inside a cell) and each
-    cell's source profile; `factor` as for particles.build."""
-    cell, sdf, _, count = tessellation(shape, params, seed, wrap, factor)
-    owner = np.where(sdf > 0, cell, -1).astype(np.int32)
+    walls), sdf (distance to the wall less half its width, positive inside a cell), each
+    cell's source profile and the walls (for soften_walls); `factor` as for particles.build."""
+    walls, count = tessellation(shape, params, seed, wrap, factor)
+    owner = np.where(walls.sdf > 0, walls.cell, -1).astype(np.int32)
     pick = source_draw(sources, count, np.random.default_rng(seed + 1))
-    return pt.Particles(owner, sdf, pick)
+    return pt.Particles(owner, walls.sdf, pick, walls)
 
 
 def wall_coverage(sdf: np.ndarray, gap: float) -> np.ndarray:
@@ -212,19 +215,17 @@ def wall_coverage(sdf: np.ndarray, gap: float) -> np.ndarray:
     return np.clip(over / FOOTPRINT, 0.0, 1.0).astype(np.float32)
 
 
-def soften_walls(voxels: np.ndarray, found, seed: int, wrap: bool) -> np.ndarray:
-    """voxels (a filled volume of `found`'s structure, method.Plan, built with `seed`) with
-    antialiased walls (antialiased) when the structure is packed cells, else unchanged."""
-    if found.kind != "particles" or not isinstance(found.model[1], CellParams):
+def soften_walls(voxels: np.ndarray, walls: Walls | None, wrap: bool) -> np.ndarray:
+    """voxels (a filled volume of the structure whose `walls` these are) with antialiased walls
+    (antialiased); unchanged when the structure has none (it is not packed cells)."""
+    if walls is None:
         return voxels
-    _, params, factor = found.model
-    cell, sdf, gap, _ = tessellation(voxels.shape[:3], params, seed, wrap, factor)
-    return antialiased(voxels, cell, sdf, gap, wrap)
+    return antialiased(voxels, walls.cell, walls.sdf, walls.gap, wrap)
 
 
 def antialiased(voxels: np.ndarray, cell: np.ndarray, sdf: np.ndarray, gap: float,
                 wrap: bool) -> np.ndarray:
-    """voxels (Z, Y, X, C) of a tessellation (tessellation's cell, sdf and gap) whose every
+    """voxels (Z, Y, X, C) of a tessellation (its Walls' cell, sdf and gap) whose every
     voxel the fill painted wall (sdf <= 0) or cell, with antialiased walls: painted so, a wall
     at an angle to the axes steps along them. Each voxel takes the wall's share of it
     (wall_coverage, from the power diagram's planes: exact, no staircase) of the wall colour

@@ -18,7 +18,9 @@ SLOPE_STEP = 4  # decorrelate_phases reads its slopes on every this-many-th slic
 
 
 def plane_blur(values: np.ndarray, sigma: float, axes, wrap: bool) -> np.ndarray:
-    """values blurred by a Gaussian of `sigma` along `axes` (FFT; edges mirrored unless wrap)."""
+    """values blurred by a Gaussian of `sigma` along `axes` (FFT; edges mirrored unless wrap).
+    segment.gaussian_blur gives the same within 1e-3, but its direct sum over 6 sigma of taps is
+    2-4 times slower at these sigmas, a particle wide."""
     pad = 0 if wrap else int(np.ceil(3 * sigma))
     if pad:
         width = [(pad, pad) if a in axes else (0, 0) for a in range(values.ndim)]

@@ -222,7 +222,7 @@ class Built:
     (Z, Y, X, I) (the guide's identity channels); coverage float32 (Z, Y, X, K): every phase's
     share of each voxel (antialiased boundaries); regions int64 (Z, Y, X) with their colours
     (R, C) and source profiles (R,) when the phases hold regions of one colour each
-    (particles), else None."""
+    (particles), else None; walls: packed cells' tessellation (cells.Walls), else None."""
 
     labels: np.ndarray
     identity: np.ndarray
@@ -230,6 +230,7 @@ class Built:
     regions: np.ndarray | None = None
     region_colours: np.ndarray | None = None
     region_sources: np.ndarray | None = None  # each region's source profile (particles)
+    walls: cl.Walls | None = None
 
 
 def build_structure(found: Plan, shape, seed: int, wrap: bool) -> Built:
@@ -244,7 +245,7 @@ def build_structure(found: Plan, shape, seed: int, wrap: bool) -> Built:
         share = np.clip(0.5 + built.sdf, 0.0, 1.0)  # the particle's share of the voxel
         return Built(inside.astype(np.int64), identity.astype(np.float32),
                      np.stack([1.0 - share, share], -1).astype(np.float32),
-                     built.owner.astype(np.int64), colours, built.source)
+                     built.owner.astype(np.int64), colours, built.source, built.walls)
     k = len(found.colours)
     if found.kind in ("layers", "veins"):
         bands = (ly.layer_bands if found.kind == "layers" else sh.sheet_bands)(
@@ -285,7 +286,7 @@ def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np
         matched = match_particles(matched, built.regions, built.region_sources,
                                   found.model[0].spreads, built.coverage[..., 1],
                                   pixels.min(0), pixels.max(0))
-        if not any(an.reads_as_cells(a) for a in found.analyses):  # cells pool no matrix
+        if built.walls is None:  # packed cells' thin walls pool no matrix
             matched = decorrelate_particles(matched, built.labels, found.images,
                                             found.ex_of_axis, found.ex_labels, wrap)
     return (voxels + strength * (matched - voxels)).astype(np.float32)

@@ -110,11 +110,12 @@ class ParticleParams:
 class Particles:
     """A built structure: owner int32 (Z, Y, X) particle index (-1: matrix); sdf float32:
     signed distance-like value, positive inside particles (voxels); source int64 (N,): the
-    exemplar profile of every particle."""
+    exemplar profile of every particle; walls: packed cells' cells.Walls (None otherwise)."""
 
     owner: np.ndarray
     sdf: np.ndarray
     source: np.ndarray
+    walls: object = None
 
 
 def sources_from(image: np.ndarray, mask: np.ndarray, stats: ProfileStats,
