@@ -66,11 +66,16 @@ def matched_coherence(exemplar_path: Path, volume_path: Path, sigma: float = 1.0
     return worst_axis(texmetrics(*low_passed(exemplar_path, volume_path, sigma)))["coh_mean"]
 
 
-def granules(exemplar_path: Path, volume_path: Path) -> dict:
-    """granules.py's worst-axis reading (bright_shift, dark_shift)."""
+def granules_report(exemplar_path: Path, volume_path: Path) -> dict:
+    """granules.py's whole reading: per axis (x, y, z) and the worst."""
     out = subprocess.run([str(TEXMETRICS_PY), str(GRANULES), str(exemplar_path),
                           str(volume_path), "--json"], capture_output=True, text=True, check=True)
-    return json.loads(out.stdout)["worst"]
+    return json.loads(out.stdout)
+
+
+def granules(exemplar_path: Path, volume_path: Path) -> dict:
+    """granules.py's worst-axis reading (bright_shift, dark_shift)."""
+    return granules_report(exemplar_path, volume_path)["worst"]
 
 
 def solidlook(exemplar_path: Path, volume_path: Path) -> dict:

@@ -28,12 +28,10 @@ BANDS = ((16, 32), (8, 16), (4, 8), (2, 4), (1, 2))  # frequency bins r (cycles 
 
 
 def lightness(rgb: np.ndarray) -> np.ndarray:
-    """CIELAB L* of sRGB colours in [0, 1] (last axis)."""
-    c = np.clip(rgb[..., :3], 0.0, 1.0).astype(np.float64)
-    lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-    y = lin @ np.array([0.2126729, 0.7151522, 0.0721750])
-    f = np.where(y > (6 / 29) ** 3, np.cbrt(y), y / (3 * (6 / 29) ** 2) + 4 / 29)
-    return 116 * f - 16
+    """CIELAB L* of an (H, W, C) image (the segmentation's conversion)."""
+    from osmap_cli.solid.structure.segment import lab
+
+    return lab(rgb)[..., 0]
 
 
 def window_power(images, n: int) -> np.ndarray:

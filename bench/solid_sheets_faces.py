@@ -18,18 +18,9 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from solid_meters import GRANULES, TEXMETRICS_PY, load_exemplar, texmetrics
+from solid_meters import granules_report, load_exemplar, texmetrics
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-
-def _granules(ex_path: Path, vol_path: Path) -> dict:
-    import json
-    import subprocess
-
-    out = subprocess.run([str(TEXMETRICS_PY), str(GRANULES), str(ex_path), str(vol_path),
-                          "--json"], capture_output=True, text=True, check=True)
-    return json.loads(out.stdout)
 
 
 def guide_volume(exemplar, side: int, seed: int) -> np.ndarray:
@@ -41,7 +32,7 @@ def guide_volume(exemplar, side: int, seed: int) -> np.ndarray:
 
 def faces(ex_path: Path, vol_path: Path) -> dict:
     tex = texmetrics(ex_path, vol_path)
-    gran = _granules(ex_path, vol_path)
+    gran = granules_report(ex_path, vol_path)
     return {a: (tex[a]["scale"], gran[a]["bright_shift"], gran[a]["dark_shift"]) for a in "xyz"}
 
 
