@@ -556,7 +556,8 @@ def test_residual_detail_brings_the_exemplar_detail_to_each_phase():
     high-pass detail of that phase, copied from each voxel's source pixel: a phase that is flat
     in the volume reaches the exemplar's slice detail variance, a phase the fill already made
     as detailed gets none, strength 0 changes nothing, and the labels' colours stay apart."""
-    from osmap_cli.solid.structure.fill import PLANE_AXES, residual_detail
+    from osmap_cli.solid.structure.detail import residual_detail
+    from osmap_cli.solid.structure.fill import PLANE_AXES
     from osmap_cli.solid.structure.segment import gaussian_blur
 
     rng = np.random.default_rng(3)

@@ -246,7 +246,7 @@ def test_veins_take_the_exemplars_detail_as_noise_of_its_spectrum(grain):
     pixel)."""
     from types import SimpleNamespace
 
-    from osmap_cli.solid.structure.fill import DETAIL_SIGMA, slice_detail
+    from osmap_cli.solid.structure.detail import DETAIL_SIGMA, slice_detail
     from osmap_cli.solid.structure.method import add_detail
 
     image, ex_labels, voxels, labels = _vein_detail_case(grain)
@@ -294,7 +294,7 @@ def test_vein_detail_options_reach_the_fill_and_choose_the_detail():
 
     from osmap_cli.solid import SolidOptions
     from osmap_cli.solid.method_structure import Options
-    from osmap_cli.solid.structure.fill import residual_detail
+    from osmap_cli.solid.structure.detail import residual_detail
     from osmap_cli.solid.structure.method import add_detail
 
     fill = Options.from_solid(SolidOptions(vein_detail="copy", vein_grain=2.0)).fill

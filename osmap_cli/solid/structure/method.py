@@ -25,12 +25,8 @@ from osmap_cli.solid.structure import layers as ly
 from osmap_cli.solid.structure import particles as pt
 from osmap_cli.solid.structure import sheets as sh
 from osmap_cli.solid.structure.crowding import decorrelate_particles
-from osmap_cli.solid.structure.fill import (
-    match_phases,
-    match_regions,
-    noise_detail,
-    residual_detail,
-)
+from osmap_cli.solid.structure.detail import noise_detail, residual_detail
+from osmap_cli.solid.structure.fill import match_phases, match_regions
 from osmap_cli.solid.structure.particle_colour import ColourSpreads, match_particles
 from osmap_cli.solid.structure.profiles import profile_ids
 from osmap_cli.solid.structure.segment import Segmenter, gaussian_blur, smooth_volume
