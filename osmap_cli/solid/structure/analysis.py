@@ -27,6 +27,11 @@ SPLIT_DYNAMIC = 1.5  # px: touching stones split where the neck is this much thi
 LAYER_COHERENCE = 0.45  # structure tensor, global: stripes run one way
 LAYER_LOCAL = 0.85  # ... and locally
 LATTICE = 0.35  # second autocorrelation peak (another direction): a lattice, not a material
+# ... or of the dark network alone (black top-hat): mortar courses and a weave's gaps repeat
+# even where the bricks' or strands' own colours vary too much for the image's peaks
+# (bricks_dark_red 0.20-0.35, basket_weave_diagonal 0.19-0.22 at 64-128 px; stones, cells,
+# veins, bark, tomatoes, caustics 0.11 or less at 32-128 px)
+NETWORK_LATTICE = 0.16
 MIN_PARTICLES = 8
 MIN_SOLIDITY = 0.75
 MIN_DIAMETER = 4.0  # px: finer structure is texture, left to the fill
@@ -179,6 +184,8 @@ class Analysis:
             out["layer_spacing_px"] = round(self.spacing, 2)
         if self.sheetness is not None:
             out["sheetness"] = round(self.sheetness, 3)
+        if self.kind == "none" and self.notes:  # why method osmap makes it
+            out["reason"] = "; ".join(self.notes)
         if self.profiles is not None:
             scaled = self.profiles.scaled(1.0 / self.reader.factor)
             out["particles"] = {k: round(float(v), 4) for k, v in scaled.figures().items()}
@@ -194,7 +201,7 @@ def _hex(colour) -> str:
     return "#" + "".join(f"{int(round(v * 255)):02x}" for v in c)
 
 
-def _particle_candidates(image, seg, labels, lum, wrap, factor):
+def _particle_candidates(image, seg, labels, lum, tophat, wrap, factor):
     """(score, Reader, stats) for every way of reading the image as particles in a matrix: each
     colour phase as the matrix, with and without the dark gap network, and the network alone.
     A reading counts when the matrix (with the split lines) percolates, the profiles are many,
@@ -202,7 +209,6 @@ def _particle_candidates(image, seg, labels, lum, wrap, factor):
     with compact, well-outlined profiles."""
     gy, gx = np.gradient(lum)
     gradient = np.hypot(gy, gx)
-    tophat = measures.black_tophat(lum, NETWORK_RADIUS, wrap)
     threshold = measures.otsu(tophat)
     gaps = tophat > threshold
     out = []
@@ -254,6 +260,8 @@ def analyse(image: np.ndarray, wrap: bool = False, phases: int | None = None) ->
     reach = min(lum.shape) // 2
     spacing, strength = measures.first_peak(measures.along(ac, angle + 90.0, reach))
     lattice = measures.lattice_strength(ac)
+    tophat = measures.black_tophat(lum, NETWORK_RADIUS, wrap)
+    network = measures.lattice_strength(measures.autocorrelation(tophat))
     k = len(seg.centres)
     fractions = np.bincount(labels.ravel(), minlength=k) / labels.size
     colours = np.array([image[labels == i].mean(0) if (labels == i).any()
@@ -267,7 +275,10 @@ def analyse(image: np.ndarray, wrap: bool = False, phases: int | None = None) ->
         return Analysis("layers", plain, small, **common)
     if lattice[1] >= LATTICE:
         return Analysis("none", plain, small, notes=("a regular lattice",), **common)
-    candidates = _particle_candidates(image, seg, labels, lum, wrap, factor)
+    if network[1] >= NETWORK_LATTICE:
+        return Analysis("none", plain, small, notes=("a regular lattice of dark gaps",),
+                        **common)
+    candidates = _particle_candidates(image, seg, labels, lum, tophat, wrap, factor)
     if candidates:
         _, reader, stats = max(candidates, key=lambda c: c[0])
         mask = reader.particle_mask(original, wrap)
