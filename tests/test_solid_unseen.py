@@ -2,8 +2,8 @@
 strands) vary too much in colour for the image's own autocorrelation to repeat still repeats
 in its dark gap network, is read as a lattice and made by method osmap (the structure engine
 would build its bricks as round stones), and says so in -v and the provenance; stones placed
-at random still read as particles. Synthetic images, analysis only but for one 12^3 volume:
-about two seconds in all."""
+at random still read as particles. A continuum of colours (shading) cut into phases is no
+phase field. Synthetic images, analysis only but for two 8^3 volumes: a few seconds in all."""
 
 from __future__ import annotations
 
@@ -14,10 +14,13 @@ import numpy as np
 from osmap_cli.imageio import write_image
 from osmap_cli.solid.structure import measures
 from osmap_cli.solid.structure.analysis import (
+    FIELD_OVER_CONTINUUM,
     LATTICE,
     NETWORK_LATTICE,
     NETWORK_RADIUS,
+    _separation,
     analyse,
+    continuum_separation,
     enlarge,
     working_factor,
 )
@@ -57,21 +60,28 @@ def scattered_stones(side: int = 64, seed: int = 0) -> np.ndarray:
     return np.clip(np.stack([lum, 0.9 * lum, 0.8 * lum], -1), 0, 1).astype(np.float32)
 
 
+def shading(side: int = 64, seed: int = 0, sigma: float = 1.5) -> np.ndarray:
+    """Smooth Gaussian noise on a ramp of blues: a continuum of colours, no phases."""
+    rng = np.random.default_rng(seed)
+    noise = gaussian_blur(rng.normal(size=(side, side, 1)), sigma, True)[..., 0]
+    t = np.clip(0.5 + 0.18 * (noise - noise.mean()) / noise.std(), 0, 1)[..., None]
+    lo, hi = np.array([0.0, 0.45, 0.6]), np.array([0.3, 0.8, 0.85])
+    image = lo + (hi - lo) * t + rng.normal(0, 0.01, (side, side, 3))
+    return np.clip(image, 0, 1).astype(np.float32)
+
+
 def test_brickwork_reads_as_a_lattice_by_its_mortar():
-    for seed in (0, 1):
-        image = irregular_bricks(seed=seed)
-        found = analyse(image)
-        # the lightness alone does not repeat (second peak measured 0.00 on both) ...
-        assert found.lattice[1] < LATTICE
-        # ... the mortar does; read as particles (round stones) without it
-        assert found.kind == "none", found.report()
-        assert "lattice" in found.report()[0] and found.summary()["reason"]
+    found = analyse(irregular_bricks())
+    # the lightness alone does not repeat (second peak measured 0.00) ...
+    assert found.lattice[1] < LATTICE
+    # ... the mortar does; read as particles (round stones) without it
+    assert found.kind == "none", found.report()
+    assert "lattice" in found.report()[0] and found.summary()["reason"]
 
 
 def test_stones_at_random_are_not_a_lattice():
-    for seed in (0, 1):
-        found = analyse(scattered_stones(seed=seed))
-        assert found.kind == "particles", found.report()
+    found = analyse(scattered_stones())
+    assert found.kind == "particles", found.report()
     # the measure itself stays well below the bar on random stones (measured 0.07; 0.07-0.11
     # over five seeds)
     image = scattered_stones()
@@ -95,3 +105,17 @@ def test_a_lattice_is_made_by_method_osmap_and_says_so(run_cli, tmp_path):
     record = json.loads(volumes["structure"][1]["structure"])
     assert record["structure"] == "none"
     assert record["analysis"][0]["reason"] == "a regular lattice of dark gaps"
+
+
+def test_a_continuum_of_colours_is_no_phase_field():
+    # seeds 1 and 4 cut into phases 1.31-1.34 times apart, over the field's 1.3 bar
+    for seed in (1, 4):
+        found = analyse(shading(seed=seed))
+        assert found.kind == "none" and "continuum" in found.notes[0], found.report()
+    # phases of distinct colours stand far above the continuum of the same spread
+    rng = np.random.default_rng(0)
+    blobs = gaussian_blur(rng.normal(size=(64, 64, 1)), 3.0, True)[..., 0] > 0
+    image = np.where(blobs[..., None], [0.7, 0.5, 0.3], [0.3, 0.5, 0.6])
+    feats = lab(image + rng.normal(0, 0.02, image.shape))
+    ratio = _separation(feats, blobs.astype(np.int64)) / continuum_separation(feats, 2)
+    assert ratio > 2 * FIELD_OVER_CONTINUUM, ratio

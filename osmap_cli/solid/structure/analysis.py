@@ -16,7 +16,7 @@ import numpy as np
 
 from osmap_cli.solid.structure import measures
 from osmap_cli.solid.structure.profiles import ProfileStats, profile_stats
-from osmap_cli.solid.structure.segment import Segmenter, gaussian_blur, lab
+from osmap_cli.solid.structure.segment import MAX_SAMPLES, Segmenter, gaussian_blur, kmeans, lab
 from osmap_kernels.structure import label_components, split_touching
 
 KINDS = ("particles", "layers", "veins", "field", "none")
@@ -39,6 +39,12 @@ MIN_EDGE = 1.4  # profile outlines lie on edges: their mean gradient over the im
 MAX_SPLIT = 0.12  # split lines may complete a gap network, not make most of it
 PERIODIC = 0.2  # autocorrelation at the first peak across the stripes: a spacing worth naming
 FIELD_SEPARATION = 1.3  # between-phase over within-phase colour spread for a phase field
+# ... and this many times the spread of one Gaussian cloud of the exemplar's colours (their
+# mean and covariance) cut into as many phases: a continuum of colours (shading, light on
+# water) cut in two scores 1.2-1.3 by itself (water_caustics 0.98-1.07 times it; tomatoes
+# 1.25, bark 1.13-1.28, marble 1.26-1.32, mottled patches 3.8-4.2). Veins are also read from
+# their layout (SHEETS); a phase field has only this to tell it from a cut continuum.
+FIELD_OVER_CONTINUUM = 1.15
 SHEETS = 0.55  # ... whose layout varies this much less along its local stripes than across
 SHEET_LAG = 10.0  # px of the working resolution: the lag of that comparison
 SHEET_SIGMA = 2.0  # px: the structure tensor's scale giving each pixel's local direction
@@ -287,10 +293,17 @@ def analyse(image: np.ndarray, wrap: bool = False, phases: int | None = None) ->
                             "fractions": np.array([1 - mask.mean(), mask.mean()])},
                          profiles=stats)
         return replace(found, notes=(PACKED_CELLS,)) if reads_as_cells(found) else found
-    if _separation(lab(image), labels) >= FIELD_SEPARATION:
+    feats = lab(image)
+    separation = _separation(feats, labels)
+    if separation >= FIELD_SEPARATION:
         sheetness = sheet_ratio(image, labels)
-        return Analysis("veins" if sheetness <= SHEETS else "field", plain, small,
-                        sheetness=sheetness, **common)
+        if sheetness <= SHEETS:
+            return Analysis("veins", plain, small, sheetness=sheetness, **common)
+        if separation >= FIELD_OVER_CONTINUUM * continuum_separation(feats, k):
+            return Analysis("field", plain, small, sheetness=sheetness, **common)
+        return Analysis("none", plain, small, sheetness=sheetness,
+                        notes=("phases no more distinct than a continuum of colours",),
+                        **common)
     return Analysis("none", plain, small, notes=("no separable phases",), **common)
 
 
@@ -308,6 +321,19 @@ def _separation(feats: np.ndarray, labels: np.ndarray) -> float:
                               for i in range(len(centres))]))
     between = np.sqrt(((centres - flat.mean(0)) ** 2).sum(1).mean())
     return float(between / max(within, 1e-9))
+
+
+def continuum_separation(feats: np.ndarray, k: int, seed: int = 0) -> float:
+    """_separation of k phases clustered (as Segmenter.fit does) in one Gaussian cloud with
+    the mean and covariance of `feats` (H, W, F): what cutting a continuum of colours scores."""
+    flat = feats.reshape(-1, feats.shape[2])
+    rng = np.random.default_rng(seed)
+    cloud = rng.multivariate_normal(flat.mean(0), np.cov(flat.T), MAX_SAMPLES)
+    centres, _ = kmeans(cloud, k, seed)
+    labels = ((cloud[:, None, :] - centres[None]) ** 2).sum(2).argmin(1)
+    if len(np.unique(labels)) < k:
+        return float("inf")
+    return _separation(cloud[:, None, :], labels[:, None])
 
 
 def sheet_ratio(image: np.ndarray, labels: np.ndarray, wrap: bool = False) -> float:
