@@ -41,9 +41,9 @@ PERIODIC = 0.2  # autocorrelation at the first peak across the stripes: a spacin
 FIELD_SEPARATION = 1.3  # between-phase over within-phase colour spread for a phase field
 # ... and this many times the spread of one Gaussian cloud of the exemplar's colours (their
 # mean and covariance) cut into as many phases: a continuum of colours (shading, light on
-# water) cut in two scores 1.2-1.3 by itself (water_caustics 0.98-1.07 times it; tomatoes
-# 1.25, bark 1.13-1.28, marble 1.26-1.32, mottled patches 3.8-4.2). Veins are also read from
-# their layout (SHEETS); a phase field has only this to tell it from a cut continuum.
+# water) cut in two scores 1.2-1.3 by itself (water_caustics 1.01-1.08 times it at 64-128 px;
+# tomatoes 1.29, bark 1.14-1.32, marble 1.34-1.38, mottled patches 4.0-4.2). Veins are also
+# read from their layout (SHEETS); a phase field has only this to tell it from a cut continuum.
 FIELD_OVER_CONTINUUM = 1.15
 SHEETS = 0.55  # ... whose layout varies this much less along its local stripes than across
 SHEET_LAG = 10.0  # px of the working resolution: the lag of that comparison
@@ -327,8 +327,11 @@ def continuum_separation(feats: np.ndarray, k: int, seed: int = 0) -> float:
     """_separation of k phases clustered (as Segmenter.fit does) in one Gaussian cloud with
     the mean and covariance of `feats` (H, W, F): what cutting a continuum of colours scores."""
     flat = feats.reshape(-1, feats.shape[2])
-    rng = np.random.default_rng(seed)
-    cloud = rng.multivariate_normal(flat.mean(0), np.cov(flat.T), MAX_SAMPLES)
+    cov = np.atleast_2d(np.cov(flat.T))
+    cov = cov + np.eye(len(cov)) * 1e-9 * max(float(np.trace(cov)), 1e-12)
+    # a Cholesky factor is unique (an SVD's signs are not): the same cloud on every machine
+    normal = np.random.default_rng(seed).standard_normal((MAX_SAMPLES, len(cov)))
+    cloud = flat.mean(0) + normal @ np.linalg.cholesky(cov).T
     centres, _ = kmeans(cloud, k, seed)
     labels = ((cloud[:, None, :] - centres[None]) ** 2).sum(2).argmin(1)
     if len(np.unique(labels)) < k:
