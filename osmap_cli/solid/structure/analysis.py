@@ -16,7 +16,7 @@ import numpy as np
 
 from osmap_cli.solid.structure import measures
 from osmap_cli.solid.structure.profiles import ProfileStats, profile_stats
-from osmap_cli.solid.structure.segment import Segmenter, gaussian_blur, lab
+from osmap_cli.solid.structure.segment import MAX_SAMPLES, Segmenter, gaussian_blur, kmeans, lab
 from osmap_kernels.structure import label_components, split_touching
 
 KINDS = ("particles", "layers", "veins", "field", "none")
@@ -27,6 +27,11 @@ SPLIT_DYNAMIC = 1.5  # px: touching stones split where the neck is this much thi
 LAYER_COHERENCE = 0.45  # structure tensor, global: stripes run one way
 LAYER_LOCAL = 0.85  # ... and locally
 LATTICE = 0.35  # second autocorrelation peak (another direction): a lattice, not a material
+# ... or of the dark network alone (black top-hat): mortar courses and a weave's gaps repeat
+# even where the bricks' or strands' own colours vary too much for the image's peaks
+# (bricks_dark_red 0.20-0.35, basket_weave_diagonal 0.19-0.22 at 64-128 px; stones, cells,
+# veins, bark, tomatoes, caustics 0.11 or less at 32-128 px)
+NETWORK_LATTICE = 0.16
 MIN_PARTICLES = 8
 MIN_SOLIDITY = 0.75
 MIN_DIAMETER = 4.0  # px: finer structure is texture, left to the fill
@@ -34,6 +39,17 @@ MIN_EDGE = 1.4  # profile outlines lie on edges: their mean gradient over the im
 MAX_SPLIT = 0.12  # split lines may complete a gap network, not make most of it
 PERIODIC = 0.2  # autocorrelation at the first peak across the stripes: a spacing worth naming
 FIELD_SEPARATION = 1.3  # between-phase over within-phase colour spread for a phase field
+# ... and this many times the spread of one Gaussian cloud of the exemplar's colours (their
+# mean and covariance) cut into as many phases: a continuum of colours (shading, light on
+# water) cut in two scores 1.2-1.3 by itself (water_caustics 1.01-1.08 times it at 64-128 px;
+# tomatoes 1.29, bark 1.14-1.32, marble 1.34-1.38, mottled patches 4.0-4.2). Veins are also
+# read from their layout (SHEETS); a phase field has only this to tell it from a cut continuum.
+FIELD_OVER_CONTINUUM = 1.15
+# a phase field is one Gaussian field cut at thresholds: only phases next to each other in its
+# order meet (its cuts: none out of order). At most this share of the exemplar's phase
+# boundary may join phases that are not (tomatoes at 128 px 0.15: stems on the fruit, out of
+# the order gaps, fruit, highlights; marble, terrazzo, cells, mottled patches 0.006 or less)
+OUT_OF_ORDER = 0.05
 SHEETS = 0.55  # ... whose layout varies this much less along its local stripes than across
 SHEET_LAG = 10.0  # px of the working resolution: the lag of that comparison
 SHEET_SIGMA = 2.0  # px: the structure tensor's scale giving each pixel's local direction
@@ -179,6 +195,8 @@ class Analysis:
             out["layer_spacing_px"] = round(self.spacing, 2)
         if self.sheetness is not None:
             out["sheetness"] = round(self.sheetness, 3)
+        if self.kind == "none" and self.notes:  # why method osmap makes it
+            out["reason"] = "; ".join(self.notes)
         if self.profiles is not None:
             scaled = self.profiles.scaled(1.0 / self.reader.factor)
             out["particles"] = {k: round(float(v), 4) for k, v in scaled.figures().items()}
@@ -194,7 +212,7 @@ def _hex(colour) -> str:
     return "#" + "".join(f"{int(round(v * 255)):02x}" for v in c)
 
 
-def _particle_candidates(image, seg, labels, lum, wrap, factor):
+def _particle_candidates(image, seg, labels, lum, tophat, wrap, factor):
     """(score, Reader, stats) for every way of reading the image as particles in a matrix: each
     colour phase as the matrix, with and without the dark gap network, and the network alone.
     A reading counts when the matrix (with the split lines) percolates, the profiles are many,
@@ -202,7 +220,6 @@ def _particle_candidates(image, seg, labels, lum, wrap, factor):
     with compact, well-outlined profiles."""
     gy, gx = np.gradient(lum)
     gradient = np.hypot(gy, gx)
-    tophat = measures.black_tophat(lum, NETWORK_RADIUS, wrap)
     threshold = measures.otsu(tophat)
     gaps = tophat > threshold
     out = []
@@ -254,6 +271,8 @@ def analyse(image: np.ndarray, wrap: bool = False, phases: int | None = None) ->
     reach = min(lum.shape) // 2
     spacing, strength = measures.first_peak(measures.along(ac, angle + 90.0, reach))
     lattice = measures.lattice_strength(ac)
+    tophat = measures.black_tophat(lum, NETWORK_RADIUS, wrap)
+    network = measures.lattice_strength(measures.autocorrelation(tophat))
     k = len(seg.centres)
     fractions = np.bincount(labels.ravel(), minlength=k) / labels.size
     colours = np.array([image[labels == i].mean(0) if (labels == i).any()
@@ -267,7 +286,10 @@ def analyse(image: np.ndarray, wrap: bool = False, phases: int | None = None) ->
         return Analysis("layers", plain, small, **common)
     if lattice[1] >= LATTICE:
         return Analysis("none", plain, small, notes=("a regular lattice",), **common)
-    candidates = _particle_candidates(image, seg, labels, lum, wrap, factor)
+    if network[1] >= NETWORK_LATTICE:
+        return Analysis("none", plain, small, notes=("a regular lattice of dark gaps",),
+                        **common)
+    candidates = _particle_candidates(image, seg, labels, lum, tophat, wrap, factor)
     if candidates:
         _, reader, stats = max(candidates, key=lambda c: c[0])
         mask = reader.particle_mask(original, wrap)
@@ -276,10 +298,19 @@ def analyse(image: np.ndarray, wrap: bool = False, phases: int | None = None) ->
                             "fractions": np.array([1 - mask.mean(), mask.mean()])},
                          profiles=stats)
         return replace(found, notes=(PACKED_CELLS,)) if reads_as_cells(found) else found
-    if _separation(lab(image), labels) >= FIELD_SEPARATION:
+    feats = lab(image)
+    separation = _separation(feats, labels)
+    if separation >= FIELD_SEPARATION:
         sheetness = sheet_ratio(image, labels)
-        return Analysis("veins" if sheetness <= SHEETS else "field", plain, small,
-                        sheetness=sheetness, **common)
+        if sheetness <= SHEETS:
+            return Analysis("veins", plain, small, sheetness=sheetness, **common)
+        if separation < FIELD_OVER_CONTINUUM * continuum_separation(feats, k):
+            why = "phases no more distinct than a continuum of colours"
+        elif out_of_order(labels, k) > OUT_OF_ORDER:
+            why = "phases that meet out of any one order: no phase field"
+        else:
+            return Analysis("field", plain, small, sheetness=sheetness, **common)
+        return Analysis("none", plain, small, sheetness=sheetness, notes=(why,), **common)
     return Analysis("none", plain, small, notes=("no separable phases",), **common)
 
 
@@ -297,6 +328,37 @@ def _separation(feats: np.ndarray, labels: np.ndarray) -> float:
                               for i in range(len(centres))]))
     between = np.sqrt(((centres - flat.mean(0)) ** 2).sum(1).mean())
     return float(between / max(within, 1e-9))
+
+
+def continuum_separation(feats: np.ndarray, k: int, seed: int = 0) -> float:
+    """_separation of k phases clustered (as Segmenter.fit does) in one Gaussian cloud with
+    the mean and covariance of `feats` (H, W, F): what cutting a continuum of colours scores."""
+    flat = feats.reshape(-1, feats.shape[2])
+    cov = np.atleast_2d(np.cov(flat.T))
+    cov = cov + np.eye(len(cov)) * 1e-9 * max(float(np.trace(cov)), 1e-12)
+    # a Cholesky factor is unique (an SVD's signs are not): the same cloud on every machine
+    normal = np.random.default_rng(seed).standard_normal((MAX_SAMPLES, len(cov)))
+    cloud = flat.mean(0) + normal @ np.linalg.cholesky(cov).T
+    centres, _ = kmeans(cloud, k, seed)
+    labels = ((cloud[:, None, :] - centres[None]) ** 2).sum(2).argmin(1)
+    if len(np.unique(labels)) < k:
+        return float("inf")
+    return _separation(cloud[:, None, :], labels[:, None])
+
+
+def out_of_order(labels: np.ndarray, k: int) -> float:
+    """The share of the phase boundary (4-neighbour pairs) between phases that are not next
+    to each other in the phase field's order (field.phase_order)."""
+    from osmap_cli.solid.structure.field import phase_order
+
+    adj = np.zeros((k, k))
+    for a, b in ((labels[:, :-1], labels[:, 1:]), (labels[:-1], labels[1:])):
+        diff = a != b
+        np.add.at(adj, (a[diff], b[diff]), 1)
+    adj = adj + adj.T
+    order = phase_order(labels, k)
+    inside = sum(adj[order[i], order[i + 1]] for i in range(k - 1))
+    return float(1.0 - inside / max(adj.sum() / 2, 1.0))
 
 
 def sheet_ratio(image: np.ndarray, labels: np.ndarray, wrap: bool = False) -> float:
