@@ -292,14 +292,15 @@ def add_detail(voxels, source, found: Plan, built: Built, images, ex_of_axis, st
                seed: int, wrap: bool, veins: str = "noise", grain: float = 0.0) -> np.ndarray:
     """The filled voxels with the exemplar's residual detail, `strength` of its variance per
     phase. Particles and layers copy it from every voxel's source pixel (residual_detail).
-    Veins take it as noise with the detail's spectrum, its grain along the sheets
-    (noise_detail, `grain` its stretch along them, 0: fitted; `veins` "copy": copied as the
-    others, "none": none): copied, it follows the fill's window lattice, which their wide
-    uniform regions show as a grid. Phase fields take none."""
+    Veins take it as noise with the detail's spectrum, their whole fine band then drawn out
+    along the sheets' local planes (noise_detail, `grain` the in-sheet blur in voxels, 0:
+    fitted; `veins` "copy": copied as the others, "none": none): copied, it follows the fill's
+    window lattice, which their wide uniform regions show as a grid. Phase fields take none."""
     if found.kind in ("particles", "layers") or (found.kind == "veins" and veins == "copy"):
         return residual_detail(voxels, source, images, ex_of_axis, built.labels,
                                found.ex_labels, strength, wrap)
     if found.kind == "veins" and veins == "noise":
+        u, _ = sh.sheet_coordinate(voxels.shape[:3], found.model, seed, wrap)
         return noise_detail(voxels, images, ex_of_axis, built.labels, found.ex_labels, strength,
-                            seed, found.model.normal, wrap, grain)
+                            seed, sh.sheet_normals(u, wrap), wrap, grain)
     return voxels
