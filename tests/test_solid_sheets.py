@@ -221,6 +221,9 @@ def _centroid(values: np.ndarray) -> float:
     return float((power * radius).sum() / power.sum())
 
 
+BANDS_NORMAL = np.array([-1.0, -1.0, 1.0]) / 3 ** 0.5  # (z, y, x) of _vein_detail_case's bands
+
+
 def _vein_detail_case(grain: float, side: int = 32):
     """(exemplar, its phases, filled voxels, their labels): two phases in diagonal bands, the
     exemplar's grain a noise blurred by `grain` px (streaked along the bands with grain > 0),
@@ -233,7 +236,7 @@ def _vein_detail_case(grain: float, side: int = 32):
     noise = noise / noise.std() * 0.04
     image = (COLOURS[ex_labels] + noise * np.array([1.0, 0.8, 0.6])).astype(np.float32)
     z, v, u = np.mgrid[0:side, 0:side, 0:side]
-    labels = (((u - v - z) % 24) < 12).astype(np.int64)
+    labels = (((u - v - z) % 24) < 12).astype(np.int64)  # planar bands normal to BANDS_NORMAL
     return image, ex_labels, COLOURS[labels].astype(np.float32), labels
 
 
@@ -251,7 +254,7 @@ def test_veins_take_the_exemplars_detail_as_noise_of_its_spectrum(grain):
 
     image, ex_labels, voxels, labels = _vein_detail_case(grain)
     found = SimpleNamespace(kind="veins", ex_labels=[ex_labels],
-                            model=SimpleNamespace(normal=np.array([1.0, -1.0, -1.0]) / 3 ** 0.5))
+                            model=SimpleNamespace(normal=BANDS_NORMAL, amplitude=0.0))
     source = np.zeros((*labels.shape, 3), np.int32)
     out = add_detail(voxels, source, found, SimpleNamespace(labels=labels), [image],
                      np.zeros(3, np.int64), 1.0, seed=5, wrap=False)
@@ -287,6 +290,36 @@ def test_vein_detail_grain_lies_along_the_sheets():
     assert face_anisotropy(freqs, power, n, 2.0) > 0.3
 
 
+def test_vein_detail_follows_curved_sheets_locally():
+    """With the sheets' local normals the fine band is drawn out along every fold: around
+    cylindrical sheets (rings about z) the detail's gradients on the z slices point along the
+    local radius, the streaks run around the rings (a grain along one mean normal could only
+    brush across them); without normals the noise is isotropic. Measured: 0.53 at grain 1,
+    -0.01 isotropic."""
+    from osmap_cli.solid.structure.detail import noise_detail
+    from osmap_cli.solid.structure.sheets import sheet_normals
+
+    side = 32
+    rng = np.random.default_rng(2)
+    image = (0.5 + 0.05 * rng.normal(0, 1, (64, 64, 3))).astype(np.float32)
+    z, y, x = np.mgrid[0:side, 0:side, 0:side] + 0.5
+    radius = np.hypot(y - side / 2, x - side / 2)
+    normals = sheet_normals(radius.astype(np.float32), False)
+    voxels = np.full((side,) * 3 + (3,), 0.5, np.float32)
+    args = (voxels, [image], np.zeros(3, np.int64), np.zeros((side,) * 3, np.int64),
+            [np.zeros((64, 64), np.int64)], 1.0, 3)
+
+    def along_radius(out) -> float:
+        gy, gx = np.gradient((out - voxels).sum(-1), axis=(1, 2))
+        agree = np.cos(2 * (np.arctan2(gx, gy) - np.arctan2(x - side / 2, y - side / 2)))
+        keep = (radius > 4) & (radius < 14)
+        energy = (gy * gy + gx * gx)[keep]
+        return float((energy * agree[keep]).sum() / energy.sum())
+
+    assert along_radius(noise_detail(*args, normals, False, 1.0)) > 0.35
+    assert abs(along_radius(noise_detail(*args, None, False, 0.0))) < 0.1
+
+
 def test_vein_detail_options_reach_the_fill_and_choose_the_detail():
     """--vein-detail and --vein-grain reach method structure's fill; "none" leaves veins as the
     fill made them, "copy" copies the detail from the source pixels as for particles."""
@@ -301,7 +334,7 @@ def test_vein_detail_options_reach_the_fill_and_choose_the_detail():
     assert (fill.vein_detail, fill.vein_grain) == ("copy", 2.0)
     image, ex_labels, voxels, labels = _vein_detail_case(0.5, side=16)
     found = SimpleNamespace(kind="veins", ex_labels=[ex_labels],
-                            model=SimpleNamespace(normal=np.array([1.0, 0.0, 0.0])))
+                            model=SimpleNamespace(normal=BANDS_NORMAL, amplitude=0.0))
     rng = np.random.default_rng(0)
     source = np.stack([np.zeros(labels.shape, np.int32),
                        rng.integers(0, 64, labels.shape, dtype=np.int32),
