@@ -152,26 +152,41 @@ def along_sheets(values: np.ndarray, normals: np.ndarray, sigma: float,
     if sigma <= 0:
         return values.astype(np.float32)
     dirs = _hemisphere(DIRECTIONS).astype(np.float32)
-    reach = np.sin(np.radians(STEER_RADIUS)) ** 2
+    reach = np.float32(np.sin(np.radians(STEER_RADIUS)) ** 2)
     weights = [np.maximum(0.0, 1.0 - (1.0 - (normals @ d) ** 2) / reach) ** 2 for d in dirs]
     total = np.maximum(np.sum(weights, 0), 1e-12)  # every normal is within reach of some
     pad = 0 if wrap else int(np.ceil(3 * sigma))
-    padded = np.pad(values, ((pad, pad),) * 3 + ((0, 0),), mode="reflect") if pad else values
+    # mirrored at the faces into a size the FFT factors well
+    ends = [(pad, _fast_size(n + 2 * pad) - n - pad) if pad else (0, 0)
+            for n in values.shape[:3]]
+    padded = np.pad(values.astype(np.float32), ends + [(0, 0)], mode="reflect")
     shape = padded.shape[:3]
-    spectrum = np.fft.rfftn(padded.astype(np.float64), axes=(0, 1, 2))
-    k = np.meshgrid(np.fft.fftfreq(shape[0]), np.fft.fftfreq(shape[1]),
-                    np.fft.rfftfreq(shape[2]), indexing="ij")
+    spectrum = np.fft.rfftn(padded, axes=(0, 1, 2))
+    k = np.meshgrid(*(np.fft.fftfreq(n).astype(np.float32) for n in shape[:2]),
+                    np.fft.rfftfreq(shape[2]).astype(np.float32), indexing="ij")
     k2 = k[0] ** 2 + k[1] ** 2 + k[2] ** 2
-    inner = tuple(slice(pad, pad + n) for n in values.shape[:3])
+    inner = tuple(slice(a, a + n) for (a, _), n in zip(ends, values.shape[:3]))
     out = np.zeros(values.shape, np.float32)
     for d, weight in zip(dirs, weights):
         if not weight.any():
             continue
         across = k[0] * d[0] + k[1] * d[1] + k[2] * d[2]
-        gauss = np.exp(-2.0 * np.pi ** 2 * sigma ** 2 * (k2 - across ** 2))
+        gauss = np.exp(np.float32(-2.0 * np.pi ** 2 * sigma ** 2) * (k2 - across ** 2))
         blurred = np.fft.irfftn(spectrum * gauss[..., None], s=shape, axes=(0, 1, 2))[inner]
-        out += (weight / total)[..., None] * blurred.astype(np.float32)
+        out += (weight / total)[..., None] * blurred
     return out
+
+
+def _fast_size(n: int) -> int:
+    """The least size >= n whose only prime factors are 2, 3 and 5 (a fast FFT)."""
+    while True:
+        m = n
+        for p in (2, 3, 5):
+            while m % p == 0:
+                m //= p
+        if m == 1:
+            return n
+        n += 1
 
 
 def noise_detail(voxels: np.ndarray, images, ex_of_axis, labels, ex_labels, strength: float,
@@ -198,11 +213,17 @@ def noise_detail(voxels: np.ndarray, images, ex_of_axis, labels, ex_labels, stre
     if normals is not None:
         sigma = grain if grain > 0 else fit_grain(voxels, detail, normals, images, highs, used,
                                                   labels, ex_labels, strength, wrap)
-        voxels = along_sheets(voxels, normals, sigma, wrap)
-        detail = along_sheets(detail, normals, sigma, wrap)
+        voxels, detail = _split(along_sheets(np.concatenate([voxels, detail], -1), normals,
+                                             sigma, wrap))
     gain = _detail_gain(slice_detail(voxels, wrap), slice_detail(detail, wrap), highs, used,
                         labels, ex_labels, strength)
     return (voxels + gain[..., None] * detail).astype(np.float32)
+
+
+def _split(both: np.ndarray):
+    """The two halves of the channels of `both` (voxels and their detail, filtered at once)."""
+    half = both.shape[-1] // 2
+    return both[..., :half], both[..., half:]
 
 
 def _phase_noise(voxels, highs, used, labels, ex_labels, seed: int):
@@ -242,9 +263,9 @@ def fit_grain(voxels, detail, normals, images, highs, used, labels, ex_labels, s
                        + min(n, PROBE_SIDE)) for n in voxels.shape[:3])
     fill, noise, normal, label = voxels[cube], detail[cube], normals[cube], labels[cube]
     got = []
+    both = np.concatenate([fill, noise], -1)
     for sigma in GRAIN_PAIR:
-        smooth = along_sheets(fill, normal, sigma)
-        grain = along_sheets(noise, normal, sigma)
+        smooth, grain = _split(along_sheets(both, normal, sigma))
         gain = _detail_gain(slice_detail(smooth), slice_detail(grain), highs, used, label,
                             ex_labels, strength)
         got.append(_volume_anisotropy(smooth + gain[..., None] * grain))

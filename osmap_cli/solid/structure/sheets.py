@@ -92,14 +92,16 @@ def sheet_coordinate(shape, model: SheetModel, seed: int, wrap: bool):
     return u.astype(np.float32), period
 
 
-def sheet_normals(u: np.ndarray, wrap: bool) -> np.ndarray:
+def sheet_normals(u: np.ndarray, period: float | None = None) -> np.ndarray:
     """float32 (Z, Y, X, 3): the unit normal (z, y, x) of the sheets through every voxel, the
-    direction of u's gradient (central differences; wrapped with wrap)."""
+    direction of u's gradient (central differences). With a period (tileable bands: u grows by
+    whole periods across each face) the differences wrap, read modulo the period."""
     u = u.astype(np.float64)
-    if wrap:
-        grad = np.stack([(np.roll(u, -1, a) - np.roll(u, 1, a)) / 2 for a in range(3)], -1)
-    else:
+    if period is None:
         grad = np.stack(np.gradient(u), -1)
+    else:
+        steps = [np.roll(u, -1, a) - np.roll(u, 1, a) for a in range(3)]
+        grad = np.stack([(d - period * np.round(d / period)) / 2 for d in steps], -1)
     length = np.linalg.norm(grad, axis=-1, keepdims=True)
     return (grad / np.maximum(length, 1e-12)).astype(np.float32)
 
