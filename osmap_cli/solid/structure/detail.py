@@ -153,8 +153,14 @@ def along_sheets(values: np.ndarray, normals: np.ndarray, sigma: float,
         return values.astype(np.float32)
     dirs = _hemisphere(DIRECTIONS).astype(np.float32)
     reach = np.float32(np.sin(np.radians(STEER_RADIUS)) ** 2)
-    weights = [np.maximum(0.0, 1.0 - (1.0 - (normals @ d) ** 2) / reach) ** 2 for d in dirs]
-    total = np.maximum(np.sum(weights, 0), 1e-12)  # every normal is within reach of some
+
+    def weight(d):  # made twice rather than held: DIRECTIONS volumes of them would not fit
+        return np.maximum(0.0, 1.0 - (1.0 - (normals @ d) ** 2) / reach) ** 2
+
+    total = np.zeros(normals.shape[:3], np.float32)
+    for d in dirs:
+        total += weight(d)
+    total = np.maximum(total, 1e-12)  # every normal is within reach of some direction
     pad = 0 if wrap else int(np.ceil(3 * sigma))
     # mirrored at the faces into a size the FFT factors well
     ends = [(pad, _fast_size(n + 2 * pad) - n - pad) if pad else (0, 0)
@@ -167,13 +173,14 @@ def along_sheets(values: np.ndarray, normals: np.ndarray, sigma: float,
     k2 = k[0] ** 2 + k[1] ** 2 + k[2] ** 2
     inner = tuple(slice(a, a + n) for (a, _), n in zip(ends, values.shape[:3]))
     out = np.zeros(values.shape, np.float32)
-    for d, weight in zip(dirs, weights):
-        if not weight.any():
+    for d in dirs:
+        share = weight(d)
+        if not share.any():
             continue
         across = k[0] * d[0] + k[1] * d[1] + k[2] * d[2]
         gauss = np.exp(np.float32(-2.0 * np.pi ** 2 * sigma ** 2) * (k2 - across ** 2))
         blurred = np.fft.irfftn(spectrum * gauss[..., None], s=shape, axes=(0, 1, 2))[inner]
-        out += (weight / total)[..., None] * blurred
+        out += (share / total)[..., None] * blurred
     return out
 
 
