@@ -24,8 +24,9 @@ FLOW_SIGMA = 1.5  # pixels: the blur that leaves the veins' flow (the band above
 FLOW_WINDOW = 3.0  # pixels: the flow's structure tensor is averaged over a Gaussian this wide
 PROBE_SIDE = 48  # voxels: the grain is fitted on the volume's central cube this wide at most
 PROBE_STEP = 4  # the fit reads every this many slices of each family
-DIRECTIONS = 32  # grain directions steered between (over the half sphere)
-STEER_RADIUS = 30.0  # degrees: a voxel blends the directions this near its sheets' normal
+DIRECTIONS = 64  # grain directions steered between (over the half sphere; any normal lies
+#                  within 15 degrees of one)
+STEER_RADIUS = 21.0  # degrees: a voxel blends the directions this near its sheets' normal
 
 
 def residual_detail(voxels: np.ndarray, source: np.ndarray, images, ex_of_axis, labels,
