@@ -302,7 +302,7 @@ def test_vein_detail_follows_curved_sheets_locally():
     """With the sheets' local normals the fine band is drawn out along every fold: around
     cylindrical sheets (rings about z) the detail's gradients on the z slices point along the
     local radius, the streaks run around the rings (a grain along one mean normal could only
-    brush across them); without normals the noise is isotropic. Measured: 0.53 at grain 1,
+    brush across them); without normals the noise is isotropic. Measured: 0.52 at grain 1,
     -0.01 isotropic."""
     from osmap_cli.solid.structure.detail import noise_detail
     from osmap_cli.solid.structure.sheets import sheet_normals
