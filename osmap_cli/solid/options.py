@@ -182,10 +182,11 @@ class SolidOptions(Options):
                               "layers: prints the fill's window lattice as a grid on wide "
                               "regions) or none", choices=("noise", "copy", "none"),
                               tunable=True)
-    vein_grain: float = option(0.0, 0.0, 8.0, "method structure, veins: how many times longer "
-                               "the noise detail is correlated within the sheets than across "
-                               "them (1: isotropic; 0: fitted, as oriented as the exemplar's "
-                               "detail inside its phases)", tunable=True)
+    vein_grain: float = option(0.0, 0.0, 8.0, "method structure, veins: how far (voxels) the "
+                               "fine band, the fill's and the noise detail's, is blurred within "
+                               "the sheets' local planes, drawing it out into streaks that "
+                               "follow every fold (0: fitted, running along the flow as "
+                               "strongly as the exemplar's detail)", tunable=True)
 
     @property
     def shape(self) -> tuple[int, int, int]:

@@ -2,7 +2,8 @@
 the band the averaging fill loses, the exemplar's high-pass (the image less its Gaussian blur
 of DETAIL_SIGMA), added per phase up to the exemplar's variance of it. Particles and layers copy
 it from every voxel's source pixel (residual_detail); veins take it as 3D noise with the
-exemplar's spectrum and colours, its grain along the sheets (noise_detail).
+exemplar's spectrum and colours, the fine band drawn out along the sheets' local planes
+(noise_detail, along_sheets).
 """
 
 from __future__ import annotations
@@ -10,17 +11,22 @@ from __future__ import annotations
 import numpy as np
 
 from osmap_cli.solid.structure.fill import PLANE_AXES
-from osmap_cli.solid.structure.noise import (
-    RADIAL_TOP,
-    face_anisotropy,
-    oriented_field,
-    slice_matched_spectrum,
-)
+from osmap_cli.solid.structure.noise import RADIAL_TOP, oriented_field, slice_matched_spectrum
 from osmap_cli.solid.structure.segment import gaussian_blur
 
 DETAIL_SIGMA = 1.0  # pixels: the residual detail is what a Gaussian this wide removes
 SPECTRUM_BINS = 32  # radial bins (0 to RADIAL_TOP cycles per pixel) of noise_detail's spectra
-STRETCHES = (1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0)  # noise_detail's grain, candidates
+# voxels: noise_detail's grain (the in-sheet Gaussian that draws the fine band out along the
+# sheets) is fitted between these two, and kept within GRAIN_RANGE
+GRAIN_PAIR = (0.5, 1.0)
+GRAIN_RANGE = (0.25, 2.0)
+FLOW_SIGMA = 1.5  # pixels: the blur that leaves the veins' flow (the band above the detail)
+FLOW_WINDOW = 3.0  # pixels: the flow's structure tensor is averaged over a Gaussian this wide
+PROBE_SIDE = 48  # voxels: the grain is fitted on the volume's central cube this wide at most
+PROBE_STEP = 4  # the fit reads every this many slices of each family
+DIRECTIONS = 64  # grain directions steered between (over the half sphere; any normal lies
+#                  within 15 degrees of one)
+STEER_RADIUS = 21.0  # degrees: a voxel blends the directions this near its sheets' normal
 
 
 def residual_detail(voxels: np.ndarray, source: np.ndarray, images, ex_of_axis, labels,
@@ -100,25 +106,99 @@ def _radial_power(high: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return out / max(float(mask.mean()), 1e-12)
 
 
-def _anisotropy(high: np.ndarray, labels: np.ndarray) -> float:
-    """(l1 - l2) / (l1 + l2) of the central-difference structure tensor of an image's
-    luminance, over the pixels whose 3 x 3 neighbourhood is one phase (the phases' own
-    texture, not their boundaries): how strongly its gradients share one orientation."""
-    lum = high @ np.full(high.shape[2], 1.0 / high.shape[2])
-    gy = (lum[2:, 1:-1] - lum[:-2, 1:-1]) / 2
-    gx = (lum[1:-1, 2:] - lum[1:-1, :-2]) / 2
-    h, w = labels.shape
-    inner = np.ones((h - 2, w - 2), bool)
-    for dy in range(3):
-        for dx in range(3):
-            inner &= labels[dy:dy + h - 2, dx:dx + w - 2] == labels[1:-1, 1:-1]
-    gy, gx = gy[inner], gx[inner]
-    a, b, c = (gy * gy).sum(), (gx * gx).sum(), (gy * gx).sum()
-    return float(np.sqrt((a - b) ** 2 + 4 * c * c) / max(a + b, 1e-30))
+def local_anisotropy(image: np.ndarray, wrap: bool = False) -> float:
+    """How strongly an image's detail (the image less its Gaussian blur of DETAIL_SIGMA) runs
+    along its own local flow: the mean of cos(2 (angle of the detail's gradient - angle of the
+    flow's normal)), weighted by the detail's squared gradient, where the flow's normal is the
+    dominant gradient orientation of the image blurred by FLOW_SIGMA, averaged over FLOW_WINDOW
+    (structure tensor). 0: the detail ignores the flow; 1: every streak lies along it. Pixels
+    within 2 of the edge are left out (the central differences' borders)."""
+    img = np.asarray(image, np.float64)
+    lum = img.mean(-1)
+    high = lum - gaussian_blur(img, DETAIL_SIGMA, wrap).mean(-1)
+    fy, fx = np.gradient(gaussian_blur(img, FLOW_SIGMA, wrap).mean(-1))
+    tensor = gaussian_blur(np.stack([fy * fy, fx * fx, fy * fx], -1), FLOW_WINDOW, wrap)
+    flow = 0.5 * np.arctan2(2 * tensor[..., 2], tensor[..., 0] - tensor[..., 1])
+    hy, hx = np.gradient(high)
+    inner = (slice(2, -2), slice(2, -2))
+    energy = (hy * hy + hx * hx)[inner]
+    agree = np.cos(2 * (np.arctan2(hx, hy) - flow))[inner]
+    return float((energy * agree).sum() / max(float(energy.sum()), 1e-30))
+
+
+def _volume_anisotropy(values: np.ndarray) -> float:
+    """local_anisotropy averaged over every PROBE_STEP-th slice of every family."""
+    return float(np.mean([local_anisotropy(np.take(values, i, axis))
+                          for axis in range(3)
+                          for i in range(2, values.shape[axis] - 2, PROBE_STEP)]))
+
+
+def _hemisphere(count: int) -> np.ndarray:
+    """(count, 3): unit vectors spread evenly over the half sphere of positive first component
+    (a Fibonacci spiral; a grain's normal and its opposite are the same grain)."""
+    i = np.arange(count) + 0.5
+    first = 1.0 - i / count
+    ring = np.sqrt(1.0 - first * first)
+    turn = np.pi * (3.0 - np.sqrt(5.0)) * i
+    return np.stack([first, ring * np.sin(turn), ring * np.cos(turn)], 1)
+
+
+def along_sheets(values: np.ndarray, normals: np.ndarray, sigma: float,
+                 wrap: bool = False) -> np.ndarray:
+    """float32 values (Z, Y, X, C) blurred by a Gaussian of `sigma` voxels within the plane of
+    every voxel's sheet (normals (Z, Y, X, 3)), not across it: streaks drawn out along the
+    sheets, following every fold. Steered: the blur is made (FFT) along each of DIRECTIONS
+    normals, and every voxel blends those within STEER_RADIUS of its own, nearer ones more.
+    Without wrap the volume is mirrored at its faces first (no wrap-around)."""
+    if sigma <= 0:
+        return values.astype(np.float32)
+    dirs = _hemisphere(DIRECTIONS).astype(np.float32)
+    reach = np.float32(np.sin(np.radians(STEER_RADIUS)) ** 2)
+
+    def weight(d):  # made twice rather than held: DIRECTIONS volumes of them would not fit
+        return np.maximum(0.0, 1.0 - (1.0 - (normals @ d) ** 2) / reach) ** 2
+
+    total = np.zeros(normals.shape[:3], np.float32)
+    for d in dirs:
+        total += weight(d)
+    total = np.maximum(total, 1e-12)  # every normal is within reach of some direction
+    pad = 0 if wrap else int(np.ceil(3 * sigma))
+    # mirrored at the faces into a size the FFT factors well
+    ends = [(pad, _fast_size(n + 2 * pad) - n - pad) if pad else (0, 0)
+            for n in values.shape[:3]]
+    padded = np.pad(values.astype(np.float32), ends + [(0, 0)], mode="reflect")
+    shape = padded.shape[:3]
+    spectrum = np.fft.rfftn(padded, axes=(0, 1, 2))
+    k = np.meshgrid(*(np.fft.fftfreq(n).astype(np.float32) for n in shape[:2]),
+                    np.fft.rfftfreq(shape[2]).astype(np.float32), indexing="ij")
+    k2 = k[0] ** 2 + k[1] ** 2 + k[2] ** 2
+    inner = tuple(slice(a, a + n) for (a, _), n in zip(ends, values.shape[:3]))
+    out = np.zeros(values.shape, np.float32)
+    for d in dirs:
+        share = weight(d)
+        if not share.any():
+            continue
+        across = k[0] * d[0] + k[1] * d[1] + k[2] * d[2]
+        gauss = np.exp(np.float32(-2.0 * np.pi ** 2 * sigma ** 2) * (k2 - across ** 2))
+        blurred = np.fft.irfftn(spectrum * gauss[..., None], s=shape, axes=(0, 1, 2))[inner]
+        out += (share / total)[..., None] * blurred
+    return out
+
+
+def _fast_size(n: int) -> int:
+    """The least size >= n whose only prime factors are 2, 3 and 5 (a fast FFT)."""
+    while True:
+        m = n
+        for p in (2, 3, 5):
+            while m % p == 0:
+                m //= p
+        if m == 1:
+            return n
+        n += 1
 
 
 def noise_detail(voxels: np.ndarray, images, ex_of_axis, labels, ex_labels, strength: float,
-                 seed: int, normal=None, wrap: bool = False, grain: float = 0.0) -> np.ndarray:
+                 seed: int, normals=None, wrap: bool = False, grain: float = 0.0) -> np.ndarray:
     """voxels with the exemplar's residual detail (its high-pass: the image less its Gaussian
     blur of DETAIL_SIGMA) given as noise rather than copied: per phase, 3D Gaussian noise whose
     planar cuts show the power spectrum of the phase's high-pass in the exemplar
@@ -126,16 +206,40 @@ def noise_detail(voxels: np.ndarray, images, ex_of_axis, labels, ex_labels, stre
     the phase's slice high-pass variance reaches `strength` times the exemplar's (as
     residual_detail). Copied detail follows the fill's source pixels, which change with the
     window lattice (every second voxel): on wide uniform regions it prints that lattice as a
-    grid; the noise has no lattice and is periodic (it wraps). With `normal` (the sheets' mean
-    normal) the noise's correlation is longer within the sheets, by the stretch (STRETCHES)
-    whose slices' gradients are as strongly oriented as the exemplar's high-pass: the fine
-    streaks run along the veins as the exemplar's do; `grain` > 0 sets that stretch."""
+    grid; the noise has no lattice and is periodic (it wraps).
+    With `normals` (the sheets' local normal at every voxel: sheets.sheet_normals) the fine
+    band, the fill's and the noise's alike, is drawn out along the sheets (along_sheets) by the
+    grain (voxels; `grain` > 0 sets it, else fitted, fit_grain): the streaks follow every fold
+    of the veins, as the exemplar's follow its flow."""
     if strength <= 0:
         return voxels
     highs = _high_passes(images, wrap)
     used = sorted(set(int(e) for e in ex_of_axis))
+    detail = _phase_noise(voxels, highs, used, labels, ex_labels, seed)
+    if detail is None:
+        return voxels
+    if normals is not None:
+        sigma = grain if grain > 0 else fit_grain(voxels, detail, normals, images, highs, used,
+                                                  labels, ex_labels, strength, wrap)
+        voxels, detail = _split(along_sheets(np.concatenate([voxels, detail], -1), normals,
+                                             sigma, wrap))
+    gain = _detail_gain(slice_detail(voxels, wrap), slice_detail(detail, wrap), highs, used,
+                        labels, ex_labels, strength)
+    return (voxels + gain[..., None] * detail).astype(np.float32)
+
+
+def _split(both: np.ndarray):
+    """The two halves of the channels of `both` (voxels and their detail, filtered at once)."""
+    half = both.shape[-1] // 2
+    return both[..., :half], both[..., half:]
+
+
+def _phase_noise(voxels, highs, used, labels, ex_labels, seed: int):
+    """float32 (Z, Y, X, C): in every phase, isotropic noise with the spectrum and colours of
+    the exemplar's high-pass in that phase (None: no phase has pixels in the exemplar)."""
     shape = voxels.shape[:3]
-    phases = []
+    detail = np.zeros(voxels.shape, np.float32)
+    found = False
     for value in np.unique(labels):
         masks = [(ex_labels[e] == value).astype(np.float64) for e in used]
         pixels = np.concatenate([highs[e][m > 0] for e, m in zip(used, masks)])
@@ -143,26 +247,37 @@ def noise_detail(voxels: np.ndarray, images, ex_of_axis, labels, ex_labels, stre
             continue
         radial = np.mean([_radial_power(highs[e], m) for e, m in zip(used, masks)
                           if m.sum() >= 2], 0)
+        freqs, power = slice_matched_spectrum(radial)
         cov = np.atleast_2d(np.cov(pixels.T.astype(np.float64)))
         vals, vecs = np.linalg.eigh(cov)
         root = (vecs * np.sqrt(np.maximum(vals, 0.0))) @ vecs.T
-        phases.append((int(value), slice_matched_spectrum(radial), root))
-    if not phases:
-        return voxels
-    stretch = grain if grain > 0 else 1.0
-    if normal is not None and grain <= 0:
-        want = float(np.mean([_anisotropy(highs[e], ex_labels[e]) for e in used]))
-        freqs = phases[0][1][0]  # every phase's spectrum is on the same bins
-        power = np.mean([spectrum[1] for _, spectrum, _ in phases], 0)
-        stretch = min(STRETCHES, key=lambda s: abs(face_anisotropy(freqs, power, normal, s)
-                                                   - want))
-    detail = np.zeros(voxels.shape, np.float32)
-    channels = voxels.shape[3]
-    for value, (freqs, power), root in phases:
-        noise = np.stack([oriented_field(shape, freqs, power, seed + 7919 * value + 31 * c,
-                                         normal, stretch) for c in range(channels)], -1)
+        noise = np.stack([oriented_field(shape, freqs, power, seed + 7919 * int(value) + 31 * c)
+                          for c in range(voxels.shape[3])], -1)
         inside = labels == value
         detail[inside] = (noise[inside] @ root.T).astype(np.float32)
-    gain = _detail_gain(slice_detail(voxels, wrap), slice_detail(detail, wrap), highs, used,
-                        labels, ex_labels, strength)
-    return (voxels + gain[..., None] * detail).astype(np.float32)
+        found = True
+    return detail if found else None
+
+
+def fit_grain(voxels, detail, normals, images, highs, used, labels, ex_labels, strength: float,
+              wrap: bool) -> float:
+    """The grain (voxels) whose finished fine band runs along the volume's local flow as
+    strongly as the exemplar's runs along its own (local_anisotropy: the same measure on the
+    exemplars and on the slices of the volume's central cube, PROBE_SIDE wide, finished there
+    as noise_detail finishes the volume). That strength grows steadily with the grain: it is
+    measured at the two grains of GRAIN_PAIR and interpolated (within GRAIN_RANGE)."""
+    want = float(np.mean([local_anisotropy(images[e], wrap) for e in used]))
+    cube = tuple(slice((n - min(n, PROBE_SIDE)) // 2, (n - min(n, PROBE_SIDE)) // 2
+                       + min(n, PROBE_SIDE)) for n in voxels.shape[:3])
+    fill, noise, normal, label = voxels[cube], detail[cube], normals[cube], labels[cube]
+    got = []
+    both = np.concatenate([fill, noise], -1)
+    for sigma in GRAIN_PAIR:
+        smooth, grain = _split(along_sheets(both, normal, sigma))
+        gain = _detail_gain(slice_detail(smooth), slice_detail(grain), highs, used, label,
+                            ex_labels, strength)
+        got.append(_volume_anisotropy(smooth + gain[..., None] * grain))
+    (s0, s1), (a0, a1) = GRAIN_PAIR, got
+    if a1 <= a0:  # no grain draws this volume's detail out along its sheets
+        return GRAIN_RANGE[0]
+    return float(np.clip(s0 + (want - a0) * (s1 - s0) / (a1 - a0), *GRAIN_RANGE))

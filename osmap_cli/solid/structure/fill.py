@@ -38,8 +38,8 @@ class Fill:
     coarsest level's first search starts from the structure's identity colours (else from
     the average of the OS-Map layout's windows, as method osmap); detail: the residual
     detail's strength after the colour matching (residual_detail; 0: none); vein_detail: how
-    veins take it (noise: noise_detail, copy: residual_detail, none); vein_grain: the noise's
-    stretch along the sheets (0: fitted)."""
+    veins take it (noise: noise_detail, copy: residual_detail, none); vein_grain: the in-sheet
+    blur (voxels) that draws veins' fine band out along the sheets (0: fitted)."""
 
     window: int
     dims: int

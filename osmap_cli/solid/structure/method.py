@@ -218,7 +218,9 @@ class Built:
     (Z, Y, X, I) (the guide's identity channels); coverage float32 (Z, Y, X, K): every phase's
     share of each voxel (antialiased boundaries); regions int64 (Z, Y, X) with their colours
     (R, C) and source profiles (R,) when the phases hold regions of one colour each
-    (particles), else None; walls: packed cells' tessellation (cells.Walls), else None."""
+    (particles), else None; walls: packed cells' tessellation (cells.Walls), else None; bands:
+    layers' and veins' bands (layers.Bands: the coordinate u across them, whose level sets are
+    their sheets), else None."""
 
     labels: np.ndarray
     identity: np.ndarray
@@ -227,6 +229,7 @@ class Built:
     region_colours: np.ndarray | None = None
     region_sources: np.ndarray | None = None  # each region's source profile (particles)
     walls: cl.Walls | None = None
+    bands: ly.Bands | None = None
 
 
 def build_structure(found: Plan, shape, seed: int, wrap: bool) -> Built:
@@ -243,6 +246,7 @@ def build_structure(found: Plan, shape, seed: int, wrap: bool) -> Built:
                      np.stack([1.0 - share, share], -1).astype(np.float32),
                      built.owner.astype(np.int64), colours, built.source, built.walls)
     k = len(found.colours)
+    bands = None
     if found.kind in ("layers", "veins"):
         bands = (ly.layer_bands if found.kind == "layers" else sh.sheet_bands)(
             shape, found.model, seed, wrap)
@@ -258,7 +262,7 @@ def build_structure(found: Plan, shape, seed: int, wrap: bool) -> Built:
     # the identity guide antialiased like the coverage: hard phase steps on the voxel grid
     # would make the fill copy their staircases (axis-aligned edges)
     identity = coverage @ found.colours.astype(np.float32)
-    return Built(labels, identity.astype(np.float32), coverage)
+    return Built(labels, identity.astype(np.float32), coverage, bands=bands)
 
 
 def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np.ndarray:
@@ -292,14 +296,14 @@ def add_detail(voxels, source, found: Plan, built: Built, images, ex_of_axis, st
                seed: int, wrap: bool, veins: str = "noise", grain: float = 0.0) -> np.ndarray:
     """The filled voxels with the exemplar's residual detail, `strength` of its variance per
     phase. Particles and layers copy it from every voxel's source pixel (residual_detail).
-    Veins take it as noise with the detail's spectrum, its grain along the sheets
-    (noise_detail, `grain` its stretch along them, 0: fitted; `veins` "copy": copied as the
-    others, "none": none): copied, it follows the fill's window lattice, which their wide
-    uniform regions show as a grid. Phase fields take none."""
+    Veins take it as noise with the detail's spectrum, their whole fine band then drawn out
+    along the sheets' local planes (noise_detail, `grain` the in-sheet blur in voxels, 0:
+    fitted; `veins` "copy": copied as the others, "none": none): copied, it follows the fill's
+    window lattice, which their wide uniform regions show as a grid. Phase fields take none."""
     if found.kind in ("particles", "layers") or (found.kind == "veins" and veins == "copy"):
         return residual_detail(voxels, source, images, ex_of_axis, built.labels,
                                found.ex_labels, strength, wrap)
     if found.kind == "veins" and veins == "noise":
         return noise_detail(voxels, images, ex_of_axis, built.labels, found.ex_labels, strength,
-                            seed, found.model.normal, wrap, grain)
+                            seed, sh.sheet_normals(built.bands.u, built.bands.period), wrap, grain)
     return voxels

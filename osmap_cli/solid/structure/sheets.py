@@ -92,6 +92,20 @@ def sheet_coordinate(shape, model: SheetModel, seed: int, wrap: bool):
     return u.astype(np.float32), period
 
 
+def sheet_normals(u: np.ndarray, period: float | None = None) -> np.ndarray:
+    """float32 (Z, Y, X, 3): the unit normal (z, y, x) of the sheets through every voxel, the
+    direction of u's gradient (central differences). With a period (tileable bands: u grows by
+    whole periods across each face) the differences wrap, read modulo the period."""
+    u = u.astype(np.float64)
+    if period is None:
+        grad = np.stack(np.gradient(u), -1)
+    else:
+        steps = [np.roll(u, -1, a) - np.roll(u, 1, a) for a in range(3)]
+        grad = np.stack([(d - period * np.round(d / period)) / 2 for d in steps], -1)
+    length = np.linalg.norm(grad, axis=-1, keepdims=True)
+    return (grad / np.maximum(length, 1e-12)).astype(np.float32)
+
+
 def _fbm(points, period, length: float, seed: int, octaves: int) -> np.ndarray:
     """Fractional Brownian motion (octaves of PeriodicNoise) read at points (..., 3)."""
     out = np.zeros(points.shape[:-1], np.float32)
