@@ -25,6 +25,15 @@ RING_SIDES = 0.35  # ... and the other families' stripes are at least this coher
 MIN_RUN = 1.0
 WOBBLE_LENGTH = 4.0  # the displacement's correlation length, in layer spacings
 MAX_CHAIN = 1 << 20
+FIT_ROUNDS = 6  # the band widths within a volume: rounds of rescaling (fitted_sequence)
+MAX_FIT = 2.0  # ... by at most this factor either way
+SCALE_ROUNDS = 4  # the scale the faces show: rounds of build, cut, measure, rescale
+MAX_SCALE = 1.15  # ... by at most this factor either way (the widths stay near the fit)
+FACE_SCALE = 1.12  # the faces' antialiased structure, centred, this much coarser than the
+#                    exemplar's segmentation: the fill reads finer than the guide it follows
+DRAWS = 8  # draws of the band sequence a volume chooses from (layer_bands)
+DRAW_STEP = 7919  # ... their seeds apart
+COVERAGE = 0.5  # voxels: the bands' boundaries antialiased as a Gaussian this wide
 PARALLEL = 30.0  # degrees: one exemplar's layers this near a slice family's plane are tilted
 TILT = 45.0  # ... this much about their grain, so that no family cuts along them (the
 #               minimax of the families' band widths for turns about the grain: 1.41 : 1)
@@ -46,6 +55,8 @@ class LayerModel:
     spacing: float
     extent: tuple = (0.0, 0.0)  # rings: the end exemplar's size (rows, cols), px
     tilt: float = 0.0  # one exemplar: degrees the layers were turned about their grain
+    lightness: tuple = ()  # each phase's mean L*
+    layouts: tuple = ()  # per family x, y, z: the segmentation (labels) of its exemplar
 
     @property
     def rings(self) -> bool:
@@ -252,13 +263,138 @@ def layer_coordinate(shape, model: LayerModel, seed: int, wrap: bool):
     return u.astype(np.float32), period
 
 
+def fitted_runs(model: LayerModel) -> np.ndarray:
+    """(K,) each phase's mean band width along u as the chain draws them (runs of at least
+    MIN_RUN)."""
+    return np.array([float(np.mean(np.maximum(r, MIN_RUN))) for r in model.runs])
+
+
+def held_widths(starts, phases, held: np.ndarray, count: int) -> np.ndarray:
+    """(K,) each phase's mean band width along u as the volume holds its bands: `held` the
+    volume's u values, sorted; a band counts by the share of its length the volume fills
+    (its voxels over its length, relative), so bands cut by the volume's edge count in part
+    and the many voxels of a band where the volume is thick count once. NaN: no such band."""
+    inside = np.diff(np.searchsorted(held, starts)).astype(np.float64)
+    lengths = np.maximum(np.diff(starts), 1e-9)
+    mass = np.bincount(phases, inside, count)
+    number = np.bincount(phases, inside / lengths, count)
+    return np.where(number > 0, mass / np.maximum(number, 1e-300), np.nan)
+
+
+def fitted_sequence(starts, phases, u: np.ndarray, model: LayerModel, rounds: int = FIT_ROUNDS):
+    """starts of the band sequence with every phase's bands scaled alike, so that the bands the
+    volume holds (u: its values at every voxel) have the fitted mean widths (fitted_runs): a
+    volume holds few bands, and one draw of the chain makes them up to a fifth wider or
+    narrower than its long run, which moves every face's scale with the seed. The scaling is
+    about the volume's median u (the band there keeps its place), repeated `rounds` times
+    (scaled bands move across the volume's thick and thin parts)."""
+    held = np.sort(u, axis=None).astype(np.float64)
+    centre = float(held[len(held) // 2])
+    target = fitted_runs(model)
+    for _ in range(rounds):
+        widths = held_widths(starts, phases, held, len(target))
+        scale = np.clip(np.where(np.isnan(widths), 1.0, target / np.where(
+            np.isnan(widths), 1.0, widths)), 1 / MAX_FIT, MAX_FIT)
+        j = int(np.clip(np.searchsorted(starts, centre, side="right") - 1, 0, len(phases) - 1))
+        share = (centre - starts[j]) / max(starts[j + 1] - starts[j], 1e-9)
+        lengths = np.diff(starts) * scale[phases]
+        starts = np.concatenate([[0.0], np.cumsum(lengths)])
+        starts = starts - (starts[j] + share * lengths[j]) + centre
+    return starts
+
+
+def face_reader(u: np.ndarray, model: LayerModel):
+    """scales(starts, phases): the scale the volume's faces show (layer_scale.face_scales) with
+    the phases' lightness antialiased as the fill's guide (Bands.coverage), against the
+    exemplar's segmentation; the slices' smooth steps are computed once."""
+    from osmap_cli.solid.structure.layer_scale import cut_indices, face_scales
+
+    lightness = np.asarray(model.lightness, np.float32)
+    references = [lightness[lb] for lb in model.layouts]
+    cuts = {}
+    for axis in range(3):
+        for i in cut_indices(u.shape[axis]):
+            lo = max(i - 1, 0)
+            slab = np.take(u, np.arange(lo, min(i + 2, u.shape[axis])), axis)
+            grad = [np.gradient(slab, axis=a) for a in range(3)]
+            width = np.maximum(np.sqrt(sum(g * g for g in grad)), 1e-6) * COVERAGE
+            cuts[axis, int(i)] = (np.take(u, i, axis), np.take(width, i - lo, axis))
+
+    def scales(starts, phases):
+        def cut_of(axis, i):
+            values, width = cuts[axis, int(i)]
+            return band_shares(starts, phases, None, values, width, len(lightness)) @ lightness
+
+        return face_scales(cut_of, u.shape, references)
+
+    return scales
+
+
+def scale_miss(scales) -> float:
+    """log of how much coarser than FACE_SCALE the faces read, centred (the coarsest and finest
+    faces alike far from the aim); 0 when no face shows bands."""
+    seen = scales[np.isfinite(scales)]
+    return float(np.log(np.sqrt(seen.min() * seen.max()) / FACE_SCALE)) if len(seen) else 0.0
+
+
+def worst_miss(scales) -> float:
+    """|log| of how far the face farthest from FACE_SCALE reads from it (0: no face shows
+    bands)."""
+    seen = scales[np.isfinite(scales)]
+    return float(np.abs(np.log(seen / FACE_SCALE)).max()) if len(seen) else 0.0
+
+
+def scaled_sequence(starts, phases, u: np.ndarray, read, rounds: int = SCALE_ROUNDS):
+    """(starts scaled alike about the volume's median u, |log| miss): the faces' cuts (`read`:
+    face_reader's) show the exemplar's segmentation's scale times FACE_SCALE, centred. The
+    round nearest the aim is kept; the scale follows the bands' widths less than in
+    proportion (their antialiased edges and the displacement keep theirs), so the steps are
+    bounded by MAX_SCALE in all."""
+    centre = float(np.median(u))
+    best, total = None, 1.0
+    for done in range(rounds + 1):
+        miss = scale_miss(read(starts, phases))
+        if best is None or abs(miss) < abs(best[0]):
+            best = (miss, starts)
+        if done == rounds or abs(miss) < 0.01:
+            break
+        step = float(np.clip(np.exp(-miss), 1 / MAX_SCALE / total, MAX_SCALE / total))
+        total *= step
+        starts = centre + (starts - centre) * step
+    return best[1], abs(best[0])
+
+
 def layer_bands(shape, model: LayerModel, seed: int, wrap: bool) -> Bands:
-    """The layers of a volume of `shape`: u at every voxel and the bands along it."""
-    u, period = layer_coordinate(shape, model, seed, wrap)
-    if period is not None:
-        return Bands(u, *periodic_bands(model, period, seed), period)
-    extent = float(np.abs(u).max()) + 2 * model.spacing
-    return Bands(u, *band_sequence(model, extent, seed), None)
+    """The layers of a volume of `shape`: u at every voxel and the bands along it. A volume
+    holds few bands, and how the few wide and narrow ones of a draw fall, and how the
+    displacement bends them, moves the scale each face shows by up to a sixth between seeds:
+    of DRAWS draws (the displacement and the chain), each with its widths within the volume
+    fitted (fitted_sequence), the one whose faces read nearest the exemplar's scale (the
+    farthest face the nearest: worst_miss) is kept and scaled onto it (scaled_sequence).
+    --tileable layers keep one draw, its sequence stretched to their period."""
+    if wrap or not model.layouts:
+        u, period = layer_coordinate(shape, model, seed, wrap)
+        if period is not None:
+            return Bands(u, *periodic_bands(model, period, seed), period)
+        return Bands(u, *_fitted_draw(u, model, seed), None)
+    best = None
+    for d in range(DRAWS):
+        u, _ = layer_coordinate(shape, model, seed + DRAW_STEP * d, wrap)
+        starts, phases = _fitted_draw(u, model, seed + DRAW_STEP * d)
+        read = face_reader(u, model)
+        miss = worst_miss(read(starts, phases))
+        if best is None or miss < best[0]:
+            best = (miss, u, starts, phases, read)
+    _, u, starts, phases, read = best
+    return Bands(u, scaled_sequence(starts, phases, u, read)[0], phases, None)
+
+
+def _fitted_draw(u: np.ndarray, model: LayerModel, seed: int):
+    """(starts, phases): one draw of the chain, its widths within the volume fitted; drawn
+    over more than the volume spans, so that bands narrowed about its centre still cover it."""
+    extent = MAX_FIT * MAX_SCALE * (float(np.abs(u).max()) + 2 * model.spacing)
+    starts, phases = band_sequence(model, extent, seed)
+    return fitted_sequence(starts, phases, u, model), phases
 
 
 def _step(x: np.ndarray) -> np.ndarray:
@@ -280,28 +416,35 @@ class Bands:
         """int64 (Z, Y, X): the phase of the band every voxel's centre falls in."""
         return band_index(self.starts, self.phases, self.u, self.period)
 
-    def coverage(self, phases: int, sigma: float = 0.5) -> np.ndarray:
+    def coverage(self, phases: int, sigma: float = COVERAGE) -> np.ndarray:
         """float32 (Z, Y, X, K): every phase's share of each voxel, from the signed distance of
         its centre to the nearest band boundaries measured along the field's gradient, through
         a smooth step as wide as a Gaussian of `sigma` voxels: the smooth boundaries blurred,
         where blurring the voxels' labels keeps their staircases along the grid."""
-        u = np.mod(self.u, self.period) if self.period is not None else self.u
         grad = [np.gradient(self.u, axis=a) for a in range(3)]
         width = np.maximum(np.sqrt(sum(g * g for g in grad)), 1e-6) * sigma
-        last = len(self.phases) - 1
-        j = np.clip(np.searchsorted(self.starts, u, side="right") - 1, 0, last)
-        below = _step(-(u - self.starts[j]) / width)
-        above = _step(-(self.starts[j + 1] - u) / width)
-        wrap = self.period is not None
-        lower = np.where(j > 0, j - 1, last if wrap else 0)
-        upper = np.where(j < last, j + 1, 0 if wrap else last)
-        out = np.zeros(u.shape + (phases,), np.float32)
-        for band, share in ((j, np.maximum(1.0 - below - above, 0.0)), (lower, below),
-                            (upper, above)):
-            phase = self.phases[band]
-            for k in range(phases):
-                out[..., k] += np.where(phase == k, share, 0.0)
-        return out / np.maximum(out.sum(-1, keepdims=True), 1e-6)
+        return band_shares(self.starts, self.phases, self.period, self.u, width, phases)
+
+
+def band_shares(starts, phases, period, u, width, count: int) -> np.ndarray:
+    """float32 (..., count): Bands.coverage for values u (read modulo `period` when given)
+    whose smooth step is `width` wide."""
+    wrap = period is not None
+    if wrap:
+        u = np.mod(u, period)
+    last = len(phases) - 1
+    j = np.clip(np.searchsorted(starts, u, side="right") - 1, 0, last)
+    below = _step(-(u - starts[j]) / width)
+    above = _step(-(starts[j + 1] - u) / width)
+    lower = np.where(j > 0, j - 1, last if wrap else 0)
+    upper = np.where(j < last, j + 1, 0 if wrap else last)
+    out = np.zeros(u.shape + (count,), np.float32)
+    for band, share in ((j, np.maximum(1.0 - below - above, 0.0)), (lower, below),
+                        (upper, above)):
+        phase = phases[band]
+        for k in range(count):
+            out[..., k] += np.where(phase == k, share, 0.0)
+    return out / np.maximum(out.sum(-1, keepdims=True), 1e-6)
 
 
 def wobble_amplitude(lum: np.ndarray, angle: float, spacing: float) -> float:
@@ -397,5 +540,9 @@ def fit_layers(images, labels, analyses, ex_of_axis) -> LayerModel:
         lengths = tuple(x * thin for x in lengths)
         wobble *= thin
     extent = labels[int(ex_of_axis[ring[0]])].shape if ring is not None else (0.0, 0.0)
+    light = [np.concatenate([lab(im)[..., 0][lb == p] for im, lb in zip(images, labels)])
+             for p in range(phases)]
+    lightness = tuple(float(v.mean()) if len(v) else 0.0 for v in light)
+    layouts = tuple(labels[int(ex_of_axis[a])] for a in range(3))
     return LayerModel(normal, axis, rel, lengths, trans, wobble, spacing,
-                      tuple(float(v) for v in extent), tilt)
+                      tuple(float(v) for v in extent), tilt, lightness, layouts)
