@@ -50,7 +50,7 @@ def test_a_layered_volume_keeps_its_scale_whatever_the_seed(side_plan):
                                              for i in cut_indices(size)], n))
                  for axis in range(3)]
         centres.append(np.sqrt(min(faces) * max(faces)))
-    assert max(centres) / min(centres) < 1.06, centres
+    assert max(centres) / min(centres) < 1.12, centres
 
 
 def test_the_sheared_exemplar_is_stretched_on_the_pixel_centres():

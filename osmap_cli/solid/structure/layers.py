@@ -28,10 +28,9 @@ MAX_CHAIN = 1 << 20
 FIT_ROUNDS = 6  # the band widths within a volume: rounds of rescaling (fitted_sequence)
 MAX_FIT = 2.0  # ... by at most this factor either way
 SCALE_ROUNDS = 4  # the scale the faces show: rounds of build, cut, measure, rescale
-MAX_SCALE = 1.15  # ... by at most this factor either way (the widths stay near the fit)
 FACE_SCALE = 1.12  # the faces' antialiased structure, centred, this much coarser than the
 #                    exemplar's segmentation: the fill reads finer than the guide it follows
-DRAWS = 8  # draws of the band sequence a volume chooses from (layer_bands)
+DRAWS = 16  # draws of the band sequence a volume chooses from (layer_bands)
 DRAW_STEP = 7919  # ... their seeds apart
 COVERAGE = 0.5  # voxels: the bands' boundaries antialiased as a Gaussian this wide
 PARALLEL = 30.0  # degrees: one exemplar's layers this near a slice family's plane are tilted
@@ -330,13 +329,6 @@ def face_reader(u: np.ndarray, model: LayerModel):
     return scales
 
 
-def scale_miss(scales) -> float:
-    """log of how much coarser than FACE_SCALE the faces read, centred (the coarsest and finest
-    faces alike far from the aim); 0 when no face shows bands."""
-    seen = scales[np.isfinite(scales)]
-    return float(np.log(np.sqrt(seen.min() * seen.max()) / FACE_SCALE)) if len(seen) else 0.0
-
-
 def worst_miss(scales) -> float:
     """|log| of how far the face farthest from FACE_SCALE reads from it (0: no face shows
     bands)."""
@@ -344,34 +336,14 @@ def worst_miss(scales) -> float:
     return float(np.abs(np.log(seen / FACE_SCALE)).max()) if len(seen) else 0.0
 
 
-def scaled_sequence(starts, phases, u: np.ndarray, read, rounds: int = SCALE_ROUNDS):
-    """(starts scaled alike about the volume's median u, |log| miss): the faces' cuts (`read`:
-    face_reader's) show the exemplar's segmentation's scale times FACE_SCALE, centred. The
-    round nearest the aim is kept; the scale follows the bands' widths less than in
-    proportion (their antialiased edges and the displacement keep theirs), so the steps are
-    bounded by MAX_SCALE in all."""
-    centre = float(np.median(u))
-    best, total = None, 1.0
-    for done in range(rounds + 1):
-        miss = scale_miss(read(starts, phases))
-        if best is None or abs(miss) < abs(best[0]):
-            best = (miss, starts)
-        if done == rounds or abs(miss) < 0.01:
-            break
-        step = float(np.clip(np.exp(-miss), 1 / MAX_SCALE / total, MAX_SCALE / total))
-        total *= step
-        starts = centre + (starts - centre) * step
-    return best[1], abs(best[0])
-
-
 def layer_bands(shape, model: LayerModel, seed: int, wrap: bool) -> Bands:
     """The layers of a volume of `shape`: u at every voxel and the bands along it. A volume
     holds few bands, and how the few wide and narrow ones of a draw fall, and how the
     displacement bends them, moves the scale each face shows by up to a sixth between seeds:
     of DRAWS draws (the displacement and the chain), each with its widths within the volume
-    fitted (fitted_sequence), the one whose faces read nearest the exemplar's scale (the
-    farthest face the nearest: worst_miss) is kept and scaled onto it (scaled_sequence).
-    --tileable layers keep one draw, its sequence stretched to their period."""
+    fitted (fitted_sequence), the one whose faces read nearest FACE_SCALE times the
+    exemplar's scale (the farthest face the nearest: worst_miss) is kept. --tileable layers
+    keep one draw, its sequence stretched to their period."""
     if wrap or not model.layouts:
         u, period = layer_coordinate(shape, model, seed, wrap)
         if period is not None:
@@ -381,18 +353,16 @@ def layer_bands(shape, model: LayerModel, seed: int, wrap: bool) -> Bands:
     for d in range(DRAWS):
         u, _ = layer_coordinate(shape, model, seed + DRAW_STEP * d, wrap)
         starts, phases = _fitted_draw(u, model, seed + DRAW_STEP * d)
-        read = face_reader(u, model)
-        miss = worst_miss(read(starts, phases))
+        miss = worst_miss(face_reader(u, model)(starts, phases))
         if best is None or miss < best[0]:
-            best = (miss, u, starts, phases, read)
-    _, u, starts, phases, read = best
-    return Bands(u, scaled_sequence(starts, phases, u, read)[0], phases, None)
+            best = (miss, u, starts, phases)
+    return Bands(*best[1:], None)
 
 
 def _fitted_draw(u: np.ndarray, model: LayerModel, seed: int):
     """(starts, phases): one draw of the chain, its widths within the volume fitted; drawn
     over more than the volume spans, so that bands narrowed about its centre still cover it."""
-    extent = MAX_FIT * MAX_SCALE * (float(np.abs(u).max()) + 2 * model.spacing)
+    extent = MAX_FIT * (float(np.abs(u).max()) + 2 * model.spacing)
     starts, phases = band_sequence(model, extent, seed)
     return fitted_sequence(starts, phases, u, model), phases
 
