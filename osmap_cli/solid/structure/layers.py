@@ -27,11 +27,10 @@ WOBBLE_LENGTH = 4.0  # the displacement's correlation length, in layer spacings
 MAX_CHAIN = 1 << 20
 FIT_ROUNDS = 6  # the band widths within a volume: rounds of rescaling (fitted_sequence)
 MAX_FIT = 2.0  # ... by at most this factor either way
-SCALE_ROUNDS = 4  # the scale the faces show: rounds of build, cut, measure, rescale
-FACE_SCALE = 1.12  # the faces' antialiased structure, centred, this much coarser than the
-#                    exemplar's segmentation: the fill reads finer than the guide it follows
 DRAWS = 16  # draws of the band sequence a volume chooses from (layer_bands)
 DRAW_STEP = 7919  # ... their seeds apart
+FACE_SCALE = 1.12  # ... the one kept: its farthest face reads nearest this times the exemplar's
+#                    segmentation's scale (on the fill's guide, which reads coarser than the fill)
 COVERAGE = 0.5  # voxels: the bands' boundaries antialiased as a Gaussian this wide
 PARALLEL = 30.0  # degrees: one exemplar's layers this near a slice family's plane are tilted
 TILT = 45.0  # ... this much about their grain, so that no family cuts along them (the
