@@ -1,21 +1,26 @@
-"""The feature scale layers show on a volume's own cuts, against the exemplar's segmentation.
+"""What a layered volume's bands hold, and the feature scale its own cuts show.
 
-A volume holds few bands, so the draw of their sequence moves what its faces show: with the
-mean widths fitted (layers.fitted_sequence) a face still reads up to a sixth coarser or finer
-from one seed to the next, as the few wide or narrow bands fall. The scale read here is the
-spectral centroid (power per log-frequency band, Welch-averaged Hann windows of the
-lightness) of each slice family's cuts, coloured by the phases' lightness, over the same
-centroid of the exemplar's segmentation coloured alike: 2 ** (exemplar - cuts), 1 the
-exemplar's, 2 features twice as large. It is read on a few evenly spaced slices per family of
-the antialiased phases the fill is guided by (layers.Bands.coverage), so it costs a few
-milliseconds per round.
+A volume holds few bands: one draw of the chain makes them up to a fifth wider or narrower
+than the fit (fitted_sequence rescales each phase's bands to the fitted widths within the
+volume), and how the few wide and narrow bands fall still moves a face's scale by up to a
+sixth from one seed to the next (layers.layer_bands keeps, of several draws, the one whose
+faces read nearest the aim). The scale read here is the spectral centroid (power per
+log-frequency band, Welch-averaged Hann windows of the lightness) of each slice family's
+cuts, coloured by the phases' lightness, over the same centroid of the exemplar's
+segmentation coloured alike: 2 ** (exemplar - cuts), 1 the exemplar's, 2 features twice as
+large. It is read on a few evenly spaced slices per family of the antialiased phases the
+fill is guided by (layers.Bands.coverage), so it costs a few milliseconds per draw.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from osmap_cli.solid.structure.layers import COVERAGE, MIN_RUN, LayerModel, band_shares
+
 CUTS = 8  # evenly spaced slices per family, the volume's first and last included
+FIT_ROUNDS = 6  # the band widths within a volume: rounds of rescaling (fitted_sequence)
+MAX_FIT = 2.0  # ... by at most this factor either way
 
 
 def window(side: int) -> int:
@@ -61,3 +66,73 @@ def face_scales(cut_of, shape, references) -> np.ndarray:
             continue
         out[family] = 2.0 ** (centroid([references[family]], n) - centroid(cuts, n))
     return out
+
+
+def fitted_runs(model: LayerModel) -> np.ndarray:
+    """(K,) each phase's mean band width along u as the chain draws them (runs of at least
+    MIN_RUN)."""
+    return np.array([float(np.mean(np.maximum(r, MIN_RUN))) for r in model.runs])
+
+
+def held_widths(starts, phases, held: np.ndarray, count: int) -> np.ndarray:
+    """(K,) each phase's mean band width along u as the volume holds its bands: `held` the
+    volume's u values, sorted; a band counts by the share of its length the volume fills
+    (its voxels over its length, relative), so bands cut by the volume's edge count in part
+    and the many voxels of a band where the volume is thick count once. NaN: no such band."""
+    inside = np.diff(np.searchsorted(held, starts)).astype(np.float64)
+    lengths = np.maximum(np.diff(starts), 1e-9)
+    mass = np.bincount(phases, inside, count)
+    number = np.bincount(phases, inside / lengths, count)
+    return np.where(number > 0, mass / np.maximum(number, 1e-300), np.nan)
+
+
+def fitted_sequence(starts, phases, held: np.ndarray, model: LayerModel,
+                    rounds: int = FIT_ROUNDS):
+    """starts of the band sequence with every phase's bands scaled alike, so that the bands the
+    volume holds (held: its u values at every voxel, sorted) have the fitted mean widths
+    (fitted_runs). The scaling is about the volume's median u (the band there keeps its
+    place), repeated `rounds` times (scaled bands move across the volume's thick and thin
+    parts)."""
+    centre = float(held[len(held) // 2])
+    target = fitted_runs(model)
+    for _ in range(rounds):
+        widths = held_widths(starts, phases, held, len(target))
+        scale = np.clip(np.where(np.isnan(widths), 1.0, target / np.where(
+            np.isnan(widths), 1.0, widths)), 1 / MAX_FIT, MAX_FIT)
+        j = int(np.clip(np.searchsorted(starts, centre, side="right") - 1, 0, len(phases) - 1))
+        share = (centre - starts[j]) / max(starts[j + 1] - starts[j], 1e-9)
+        lengths = np.diff(starts) * scale[phases]
+        starts = np.concatenate([[0.0], np.cumsum(lengths)])
+        starts = starts - (starts[j] + share * lengths[j]) + centre
+    return starts
+
+
+def face_reader(u: np.ndarray, model: LayerModel):
+    """scales(starts, phases): the scale the volume's faces show (face_scales) with
+    the phases' lightness antialiased as the fill's guide (Bands.coverage), against the
+    exemplar's segmentation; the slices' smooth steps are computed once."""
+    lightness = np.asarray(model.lightness, np.float32)
+    references = [lightness[lb] for lb in model.layouts]
+    cuts = {}
+    for axis in range(3):
+        for i in cut_indices(u.shape[axis]):
+            lo = max(i - 1, 0)
+            slab = np.take(u, np.arange(lo, min(i + 2, u.shape[axis])), axis)
+            grad = [np.gradient(slab, axis=a) for a in range(3)]
+            width = np.maximum(np.sqrt(sum(g * g for g in grad)), 1e-6) * COVERAGE
+            cuts[axis, int(i)] = (np.take(u, i, axis), np.take(width, i - lo, axis))
+
+    def scales(starts, phases):
+        def cut_of(axis, i):
+            values, width = cuts[axis, int(i)]
+            return band_shares(starts, phases, None, values, width, len(lightness)) @ lightness
+
+        return face_scales(cut_of, u.shape, references)
+
+    return scales
+
+
+def worst_miss(scales, aim: float) -> float:
+    """|log| of how far the face farthest from `aim` reads from it (0: no face shows bands)."""
+    seen = scales[np.isfinite(scales)]
+    return float(np.abs(np.log(seen / aim)).max()) if len(seen) else 0.0

@@ -25,8 +25,6 @@ RING_SIDES = 0.35  # ... and the other families' stripes are at least this coher
 MIN_RUN = 1.0
 WOBBLE_LENGTH = 4.0  # the displacement's correlation length, in layer spacings
 MAX_CHAIN = 1 << 20
-FIT_ROUNDS = 6  # the band widths within a volume: rounds of rescaling (fitted_sequence)
-MAX_FIT = 2.0  # ... by at most this factor either way
 DRAWS = 16  # draws of the band sequence a volume chooses from (layer_bands)
 DRAW_STEP = 7919  # ... their seeds apart
 FACE_SCALE = 1.12  # ... the one kept: its farthest face reads nearest this times the exemplar's
@@ -261,109 +259,31 @@ def layer_coordinate(shape, model: LayerModel, seed: int, wrap: bool):
     return u.astype(np.float32), period
 
 
-def fitted_runs(model: LayerModel) -> np.ndarray:
-    """(K,) each phase's mean band width along u as the chain draws them (runs of at least
-    MIN_RUN)."""
-    return np.array([float(np.mean(np.maximum(r, MIN_RUN))) for r in model.runs])
-
-
-def held_widths(starts, phases, held: np.ndarray, count: int) -> np.ndarray:
-    """(K,) each phase's mean band width along u as the volume holds its bands: `held` the
-    volume's u values, sorted; a band counts by the share of its length the volume fills
-    (its voxels over its length, relative), so bands cut by the volume's edge count in part
-    and the many voxels of a band where the volume is thick count once. NaN: no such band."""
-    inside = np.diff(np.searchsorted(held, starts)).astype(np.float64)
-    lengths = np.maximum(np.diff(starts), 1e-9)
-    mass = np.bincount(phases, inside, count)
-    number = np.bincount(phases, inside / lengths, count)
-    return np.where(number > 0, mass / np.maximum(number, 1e-300), np.nan)
-
-
-def fitted_sequence(starts, phases, u: np.ndarray, model: LayerModel, rounds: int = FIT_ROUNDS):
-    """starts of the band sequence with every phase's bands scaled alike, so that the bands the
-    volume holds (u: its values at every voxel) have the fitted mean widths (fitted_runs): a
-    volume holds few bands, and one draw of the chain makes them up to a fifth wider or
-    narrower than its long run, which moves every face's scale with the seed. The scaling is
-    about the volume's median u (the band there keeps its place), repeated `rounds` times
-    (scaled bands move across the volume's thick and thin parts)."""
-    held = np.sort(u, axis=None).astype(np.float64)
-    centre = float(held[len(held) // 2])
-    target = fitted_runs(model)
-    for _ in range(rounds):
-        widths = held_widths(starts, phases, held, len(target))
-        scale = np.clip(np.where(np.isnan(widths), 1.0, target / np.where(
-            np.isnan(widths), 1.0, widths)), 1 / MAX_FIT, MAX_FIT)
-        j = int(np.clip(np.searchsorted(starts, centre, side="right") - 1, 0, len(phases) - 1))
-        share = (centre - starts[j]) / max(starts[j + 1] - starts[j], 1e-9)
-        lengths = np.diff(starts) * scale[phases]
-        starts = np.concatenate([[0.0], np.cumsum(lengths)])
-        starts = starts - (starts[j] + share * lengths[j]) + centre
-    return starts
-
-
-def face_reader(u: np.ndarray, model: LayerModel):
-    """scales(starts, phases): the scale the volume's faces show (layer_scale.face_scales) with
-    the phases' lightness antialiased as the fill's guide (Bands.coverage), against the
-    exemplar's segmentation; the slices' smooth steps are computed once."""
-    from osmap_cli.solid.structure.layer_scale import cut_indices, face_scales
-
-    lightness = np.asarray(model.lightness, np.float32)
-    references = [lightness[lb] for lb in model.layouts]
-    cuts = {}
-    for axis in range(3):
-        for i in cut_indices(u.shape[axis]):
-            lo = max(i - 1, 0)
-            slab = np.take(u, np.arange(lo, min(i + 2, u.shape[axis])), axis)
-            grad = [np.gradient(slab, axis=a) for a in range(3)]
-            width = np.maximum(np.sqrt(sum(g * g for g in grad)), 1e-6) * COVERAGE
-            cuts[axis, int(i)] = (np.take(u, i, axis), np.take(width, i - lo, axis))
-
-    def scales(starts, phases):
-        def cut_of(axis, i):
-            values, width = cuts[axis, int(i)]
-            return band_shares(starts, phases, None, values, width, len(lightness)) @ lightness
-
-        return face_scales(cut_of, u.shape, references)
-
-    return scales
-
-
-def worst_miss(scales) -> float:
-    """|log| of how far the face farthest from FACE_SCALE reads from it (0: no face shows
-    bands)."""
-    seen = scales[np.isfinite(scales)]
-    return float(np.abs(np.log(seen / FACE_SCALE)).max()) if len(seen) else 0.0
-
-
 def layer_bands(shape, model: LayerModel, seed: int, wrap: bool) -> Bands:
     """The layers of a volume of `shape`: u at every voxel and the bands along it. A volume
-    holds few bands, and how the few wide and narrow ones of a draw fall, and how the
-    displacement bends them, moves the scale each face shows by up to a sixth between seeds:
-    of DRAWS draws (the displacement and the chain), each with its widths within the volume
-    fitted (fitted_sequence), the one whose faces read nearest FACE_SCALE times the
-    exemplar's scale (the farthest face the nearest: worst_miss) is kept. --tileable layers
-    keep one draw, its sequence stretched to their period."""
-    if wrap or not model.layouts:
-        u, period = layer_coordinate(shape, model, seed, wrap)
-        if period is not None:
-            return Bands(u, *periodic_bands(model, period, seed), period)
-        return Bands(u, *_fitted_draw(u, model, seed), None)
+    holds few bands, and how the few wide and narrow ones of a draw fall moves the scale each
+    face shows by up to a sixth between seeds: of DRAWS draws of the chain, each with its
+    widths within the volume fitted (layer_scale.fitted_sequence), the one whose faces read
+    nearest FACE_SCALE times the exemplar's scale (the farthest face the nearest) is kept.
+    --tileable layers keep one draw, its sequence stretched to their period."""
+    from osmap_cli.solid.structure import layer_scale as ls
+
+    u, period = layer_coordinate(shape, model, seed, wrap)
+    if period is not None:
+        return Bands(u, *periodic_bands(model, period, seed), period)
+    held = np.sort(u, axis=None).astype(np.float64)
+    # drawn over more than the volume spans, so that bands narrowed about its centre still
+    # cover it
+    extent = ls.MAX_FIT * (float(np.abs(u).max()) + 2 * model.spacing)
+    read = ls.face_reader(u, model) if model.layouts else None
     best = None
-    for d in range(DRAWS):
-        u, _ = layer_coordinate(shape, model, seed + DRAW_STEP * d, wrap)
-        starts, phases = _fitted_draw(u, model, seed + DRAW_STEP * d)
-        miss = worst_miss(face_reader(u, model)(starts, phases))
+    for d in range(DRAWS if read else 1):
+        starts, phases = band_sequence(model, extent, seed + DRAW_STEP * d)
+        starts = ls.fitted_sequence(starts, phases, held, model)
+        miss = ls.worst_miss(read(starts, phases), FACE_SCALE) if read else 0.0
         if best is None or miss < best[0]:
-            best = (miss, u, starts, phases)
-    return Bands(*best[1:], None)
-
-
-def _fitted_draw(u: np.ndarray, model: LayerModel, seed: int):
-    """(starts, phases): one draw of the chain, its widths within the volume fitted; drawn
-    over more than the volume spans, so that bands narrowed about its centre still cover it."""
-    extent = MAX_FIT * (float(np.abs(u).max()) + 2 * model.spacing)
-    starts, phases = band_sequence(model, extent, seed)
-    return fitted_sequence(starts, phases, u, model), phases
+            best = (miss, starts, phases)
+    return Bands(u, best[1], best[2], None)
 
 
 def _step(x: np.ndarray) -> np.ndarray:
