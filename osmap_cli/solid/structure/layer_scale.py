@@ -16,11 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from osmap_cli.solid.structure.layers import COVERAGE, MIN_RUN, LayerModel, band_shares
-
 CUTS = 8  # evenly spaced slices per family, the volume's first and last included
 FIT_ROUNDS = 6  # the band widths within a volume: rounds of rescaling (fitted_sequence)
 MAX_FIT = 2.0  # ... by at most this factor either way
+COVERAGE = 0.5  # voxels: the bands' boundaries antialiased as a Gaussian this wide
 
 
 def window(side: int) -> int:
@@ -68,12 +67,6 @@ def face_scales(cut_of, shape, references) -> np.ndarray:
     return out
 
 
-def fitted_runs(model: LayerModel) -> np.ndarray:
-    """(K,) each phase's mean band width along u as the chain draws them (runs of at least
-    MIN_RUN)."""
-    return np.array([float(np.mean(np.maximum(r, MIN_RUN))) for r in model.runs])
-
-
 def held_widths(starts, phases, held: np.ndarray, count: int) -> np.ndarray:
     """(K,) each phase's mean band width along u as the volume holds its bands: `held` the
     volume's u values, sorted; a band counts by the share of its length the volume fills
@@ -86,15 +79,14 @@ def held_widths(starts, phases, held: np.ndarray, count: int) -> np.ndarray:
     return np.where(number > 0, mass / np.maximum(number, 1e-300), np.nan)
 
 
-def fitted_sequence(starts, phases, held: np.ndarray, model: LayerModel,
+def fitted_sequence(starts, phases, held: np.ndarray, target: np.ndarray,
                     rounds: int = FIT_ROUNDS):
     """starts of the band sequence with every phase's bands scaled alike, so that the bands the
     volume holds (held: its u values at every voxel, sorted) have the fitted mean widths
-    (fitted_runs). The scaling is about the volume's median u (the band there keeps its
-    place), repeated `rounds` times (scaled bands move across the volume's thick and thin
-    parts)."""
+    (target: each phase's, layers.fitted_runs). The scaling is about the volume's median u
+    (the band there keeps its place), repeated `rounds` times (scaled bands move across the
+    volume's thick and thin parts)."""
     centre = float(held[len(held) // 2])
-    target = fitted_runs(model)
     for _ in range(rounds):
         widths = held_widths(starts, phases, held, len(target))
         scale = np.clip(np.where(np.isnan(widths), 1.0, target / np.where(
@@ -107,12 +99,13 @@ def fitted_sequence(starts, phases, held: np.ndarray, model: LayerModel,
     return starts
 
 
-def face_reader(u: np.ndarray, model: LayerModel):
-    """scales(starts, phases): the scale the volume's faces show (face_scales) with
-    the phases' lightness antialiased as the fill's guide (Bands.coverage), against the
-    exemplar's segmentation; the slices' smooth steps are computed once."""
-    lightness = np.asarray(model.lightness, np.float32)
-    references = [lightness[lb] for lb in model.layouts]
+def face_reader(u: np.ndarray, lightness, layouts):
+    """scales(starts, phases): the scale the volume's faces show (face_scales) with the phases'
+    lightness (K,) antialiased as the fill's guide (layers.Bands.coverage), against the
+    exemplar's segmentation of each family (layouts[f]: labels); the slices' smooth steps are
+    computed once."""
+    lightness = np.asarray(lightness, np.float32)
+    references = [lightness[lb] for lb in layouts]
     cuts = {}
     for axis in range(3):
         for i in cut_indices(u.shape[axis]):
@@ -136,3 +129,29 @@ def worst_miss(scales, aim: float) -> float:
     """|log| of how far the face farthest from `aim` reads from it (0: no face shows bands)."""
     seen = scales[np.isfinite(scales)]
     return float(np.abs(np.log(seen / aim)).max()) if len(seen) else 0.0
+
+
+def _step(x: np.ndarray) -> np.ndarray:
+    """The Gaussian's cumulative distribution at x (standard deviations), logistic form."""
+    return (1.0 / (1.0 + np.exp(-1.702 * np.clip(x, -30.0, 30.0)))).astype(np.float32)
+
+
+def band_shares(starts, phases, period, u, width, count: int) -> np.ndarray:
+    """float32 (..., count): Bands.coverage for values u (read modulo `period` when given)
+    whose smooth step is `width` wide."""
+    wrap = period is not None
+    if wrap:
+        u = np.mod(u, period)
+    last = len(phases) - 1
+    j = np.clip(np.searchsorted(starts, u, side="right") - 1, 0, last)
+    below = _step(-(u - starts[j]) / width)
+    above = _step(-(starts[j + 1] - u) / width)
+    lower = np.where(j > 0, j - 1, last if wrap else 0)
+    upper = np.where(j < last, j + 1, 0 if wrap else last)
+    out = np.zeros(u.shape + (count,), np.float32)
+    for band, share in ((j, np.maximum(1.0 - below - above, 0.0)), (lower, below),
+                        (upper, above)):
+        phase = phases[band]
+        for k in range(count):
+            out[..., k] += np.where(phase == k, share, 0.0)
+    return out / np.maximum(out.sum(-1, keepdims=True), 1e-6)

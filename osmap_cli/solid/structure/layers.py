@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from osmap_cli.solid.structure.layer_scale import COVERAGE, band_shares
 from osmap_cli.solid.structure.noise import smooth_noise
 
 RING_FIT = 0.25  # rings: the fitted centre's residual over the image size stays below this
@@ -29,7 +30,6 @@ DRAWS = 16  # draws of the band sequence a volume chooses from (layer_bands)
 DRAW_STEP = 7919  # ... their seeds apart
 FACE_SCALE = 1.12  # ... the one kept: its farthest face reads nearest this times the exemplar's
 #                    segmentation's scale (on the fill's guide, which reads coarser than the fill)
-COVERAGE = 0.5  # voxels: the bands' boundaries antialiased as a Gaussian this wide
 PARALLEL = 30.0  # degrees: one exemplar's layers this near a slice family's plane are tilted
 TILT = 45.0  # ... this much about their grain, so that no family cuts along them (the
 #               minimax of the families' band widths for turns about the grain: 1.41 : 1)
@@ -259,6 +259,12 @@ def layer_coordinate(shape, model: LayerModel, seed: int, wrap: bool):
     return u.astype(np.float32), period
 
 
+def fitted_runs(model: LayerModel) -> np.ndarray:
+    """(K,) each phase's mean band width along u as the chain draws them (runs of at least
+    MIN_RUN)."""
+    return np.array([float(np.mean(np.maximum(r, MIN_RUN))) for r in model.runs])
+
+
 def layer_bands(shape, model: LayerModel, seed: int, wrap: bool) -> Bands:
     """The layers of a volume of `shape`: u at every voxel and the bands along it. A volume
     holds few bands, and how the few wide and narrow ones of a draw fall moves the scale each
@@ -275,20 +281,15 @@ def layer_bands(shape, model: LayerModel, seed: int, wrap: bool) -> Bands:
     # drawn over more than the volume spans, so that bands narrowed about its centre still
     # cover it
     extent = ls.MAX_FIT * (float(np.abs(u).max()) + 2 * model.spacing)
-    read = ls.face_reader(u, model) if model.layouts else None
+    read = ls.face_reader(u, model.lightness, model.layouts) if model.layouts else None
     best = None
     for d in range(DRAWS if read else 1):
         starts, phases = band_sequence(model, extent, seed + DRAW_STEP * d)
-        starts = ls.fitted_sequence(starts, phases, held, model)
+        starts = ls.fitted_sequence(starts, phases, held, fitted_runs(model))
         miss = ls.worst_miss(read(starts, phases), FACE_SCALE) if read else 0.0
         if best is None or miss < best[0]:
             best = (miss, starts, phases)
     return Bands(u, best[1], best[2], None)
-
-
-def _step(x: np.ndarray) -> np.ndarray:
-    """The Gaussian's cumulative distribution at x (standard deviations), logistic form."""
-    return (1.0 / (1.0 + np.exp(-1.702 * np.clip(x, -30.0, 30.0)))).astype(np.float32)
 
 
 @dataclass(frozen=True)
@@ -313,27 +314,6 @@ class Bands:
         grad = [np.gradient(self.u, axis=a) for a in range(3)]
         width = np.maximum(np.sqrt(sum(g * g for g in grad)), 1e-6) * sigma
         return band_shares(self.starts, self.phases, self.period, self.u, width, phases)
-
-
-def band_shares(starts, phases, period, u, width, count: int) -> np.ndarray:
-    """float32 (..., count): Bands.coverage for values u (read modulo `period` when given)
-    whose smooth step is `width` wide."""
-    wrap = period is not None
-    if wrap:
-        u = np.mod(u, period)
-    last = len(phases) - 1
-    j = np.clip(np.searchsorted(starts, u, side="right") - 1, 0, last)
-    below = _step(-(u - starts[j]) / width)
-    above = _step(-(starts[j + 1] - u) / width)
-    lower = np.where(j > 0, j - 1, last if wrap else 0)
-    upper = np.where(j < last, j + 1, 0 if wrap else last)
-    out = np.zeros(u.shape + (count,), np.float32)
-    for band, share in ((j, np.maximum(1.0 - below - above, 0.0)), (lower, below),
-                        (upper, above)):
-        phase = phases[band]
-        for k in range(count):
-            out[..., k] += np.where(phase == k, share, 0.0)
-    return out / np.maximum(out.sum(-1, keepdims=True), 1e-6)
 
 
 def wobble_amplitude(lum: np.ndarray, angle: float, spacing: float) -> float:
