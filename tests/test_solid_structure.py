@@ -264,16 +264,13 @@ def test_a_particle_filled_from_two_exemplar_cells_takes_one_cells_colours():
 def test_layered_exemplar_keeps_its_spacing(wood):
     side = wood[1]
     period, _ = _period_along_rows(side)  # 7.0 px, autocorrelation 0.92
-    found = []
-    for seed in (1, 2, 3):  # a 40^3 volume holds few bands: the seeds' median
-        volume = synthesize_solid([side], SolidOptions(width=40, height=40, depth=40, seed=seed,
-                                                       quality="fast")).voxels
-        # y slices: rows z
-        found.append(np.median([_period_along_rows(volume[:, y]) for y in (10, 20, 30)], 0))
-    got, strength = np.median(found, 0)
-    # measured 7.1 px at 0.50 (seeds' medians 8.1, 7.1, 7.1 px); method osmap: 6.9-7.5 px at
-    # 0.25-0.32 on seed 1 (the layers break up into fragments)
-    assert abs(got / period - 1) < 0.1 and strength > 0.45, found
+    volume = synthesize_solid([side], SolidOptions(width=40, height=40, depth=40, seed=1,
+                                                   quality="fast")).voxels
+    found = [_period_along_rows(volume[:, y]) for y in (10, 20, 30)]  # y slices: rows z
+    # measured 6.7-7.0 px at 0.58-0.75; method osmap: 6.9-7.5 px at 0.25-0.32 (the layers
+    # break up into fragments)
+    for got, strength in found:
+        assert abs(got / period - 1) < 0.1 and strength > 0.45, found
 
 
 def test_wood_end_face_shows_rings(wood):

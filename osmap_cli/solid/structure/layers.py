@@ -26,6 +26,7 @@ RING_SIDES = 0.35  # ... and the other families' stripes are at least this coher
 MIN_RUN = 1.0
 WOBBLE_LENGTH = 4.0  # the displacement's correlation length, in layer spacings
 MAX_CHAIN = 1 << 20
+FILL_WIDENING = 1.1  # the fill widens the bands of its guide by about this much
 DRAWS = 16  # draws of the band sequence a volume chooses from (layer_bands)
 DRAW_STEP = 7919  # ... their seeds apart
 FACE_SCALE = 1.12  # ... the one kept: its farthest face reads nearest this times the exemplar's
@@ -260,9 +261,10 @@ def layer_coordinate(shape, model: LayerModel, seed: int, wrap: bool):
 
 
 def fitted_runs(model: LayerModel) -> np.ndarray:
-    """(K,) each phase's mean band width along u as the chain draws them (runs of at least
-    MIN_RUN)."""
-    return np.array([float(np.mean(np.maximum(r, MIN_RUN))) for r in model.runs])
+    """(K,) each phase's mean band width along u that a volume holds: the chain's (runs of at
+    least MIN_RUN) over FILL_WIDENING."""
+    return np.array([float(np.mean(np.maximum(r, MIN_RUN))) for r in model.runs]) \
+        / FILL_WIDENING
 
 
 def layer_bands(shape, model: LayerModel, seed: int, wrap: bool) -> Bands:
@@ -271,12 +273,15 @@ def layer_bands(shape, model: LayerModel, seed: int, wrap: bool) -> Bands:
     face shows by up to a sixth between seeds: of DRAWS draws of the chain, each with its
     widths within the volume fitted (layer_scale.fitted_sequence), the one whose faces read
     nearest FACE_SCALE times the exemplar's scale (the farthest face the nearest) is kept.
-    --tileable layers keep one draw, its sequence stretched to their period."""
+    Rings keep one draw as drawn; --tileable layers one draw stretched to their period."""
     from osmap_cli.solid.structure import layer_scale as ls
 
     u, period = layer_coordinate(shape, model, seed, wrap)
     if period is not None:
         return Bands(u, *periodic_bands(model, period, seed), period)
+    if model.rings:
+        return Bands(u, *band_sequence(model, float(np.abs(u).max()) + 2 * model.spacing, seed),
+                     None)
     held = np.sort(u, axis=None).astype(np.float64)
     # drawn over more than the volume spans, so that bands narrowed about its centre still
     # cover it
