@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from osmap_cli.solid.structure.layer_scale import COVERAGE, band_shares
 from osmap_cli.solid.structure.noise import smooth_noise
 
 RING_FIT = 0.25  # rings: the fitted centre's residual over the image size stays below this
@@ -25,6 +26,11 @@ RING_SIDES = 0.35  # ... and the other families' stripes are at least this coher
 MIN_RUN = 1.0
 WOBBLE_LENGTH = 4.0  # the displacement's correlation length, in layer spacings
 MAX_CHAIN = 1 << 20
+FILL_WIDENING = 1.1  # the fill widens the bands of its guide by about this much
+DRAWS = 16  # draws of the band sequence a volume chooses from (layer_bands)
+DRAW_STEP = 7919  # ... their seeds apart
+FACE_SCALE = 1.12  # ... the one kept: its farthest face reads nearest this times the exemplar's
+#                    segmentation's scale (on the fill's guide, which reads coarser than the fill)
 PARALLEL = 30.0  # degrees: one exemplar's layers this near a slice family's plane are tilted
 TILT = 45.0  # ... this much about their grain, so that no family cuts along them (the
 #               minimax of the families' band widths for turns about the grain: 1.41 : 1)
@@ -46,6 +52,8 @@ class LayerModel:
     spacing: float
     extent: tuple = (0.0, 0.0)  # rings: the end exemplar's size (rows, cols), px
     tilt: float = 0.0  # one exemplar: degrees the layers were turned about their grain
+    lightness: tuple = ()  # each phase's mean L*
+    layouts: tuple = ()  # per family x, y, z: the segmentation (labels) of its exemplar
 
     @property
     def rings(self) -> bool:
@@ -252,18 +260,41 @@ def layer_coordinate(shape, model: LayerModel, seed: int, wrap: bool):
     return u.astype(np.float32), period
 
 
+def fitted_runs(model: LayerModel) -> np.ndarray:
+    """(K,) each phase's mean band width along u that a volume holds: the chain's (runs of at
+    least MIN_RUN) over FILL_WIDENING."""
+    return np.array([float(np.mean(np.maximum(r, MIN_RUN))) for r in model.runs]) \
+        / FILL_WIDENING
+
+
 def layer_bands(shape, model: LayerModel, seed: int, wrap: bool) -> Bands:
-    """The layers of a volume of `shape`: u at every voxel and the bands along it."""
+    """The layers of a volume of `shape`: u at every voxel and the bands along it. A volume
+    holds few bands, and how the few wide and narrow ones of a draw fall moves the scale each
+    face shows by up to a sixth between seeds: of DRAWS draws of the chain, each with its
+    widths within the volume fitted (layer_scale.fitted_sequence), the one whose faces read
+    nearest FACE_SCALE times the exemplar's scale (the farthest face the nearest) is kept.
+    Rings keep one draw as drawn; --tileable layers one draw stretched to their period."""
+    from osmap_cli.solid.structure import layer_scale as ls
+
     u, period = layer_coordinate(shape, model, seed, wrap)
     if period is not None:
         return Bands(u, *periodic_bands(model, period, seed), period)
-    extent = float(np.abs(u).max()) + 2 * model.spacing
-    return Bands(u, *band_sequence(model, extent, seed), None)
-
-
-def _step(x: np.ndarray) -> np.ndarray:
-    """The Gaussian's cumulative distribution at x (standard deviations), logistic form."""
-    return (1.0 / (1.0 + np.exp(-1.702 * np.clip(x, -30.0, 30.0)))).astype(np.float32)
+    if model.rings:
+        return Bands(u, *band_sequence(model, float(np.abs(u).max()) + 2 * model.spacing, seed),
+                     None)
+    held = np.sort(u, axis=None).astype(np.float64)
+    # drawn over more than the volume spans, so that bands narrowed about its centre still
+    # cover it
+    extent = ls.MAX_FIT * (float(np.abs(u).max()) + 2 * model.spacing)
+    read = ls.face_reader(u, model.lightness, model.layouts) if model.layouts else None
+    best = None
+    for d in range(DRAWS if read else 1):
+        starts, phases = band_sequence(model, extent, seed + DRAW_STEP * d)
+        starts = ls.fitted_sequence(starts, phases, held, fitted_runs(model))
+        miss = ls.worst_miss(read(starts, phases), FACE_SCALE) if read else 0.0
+        if best is None or miss < best[0]:
+            best = (miss, starts, phases)
+    return Bands(u, best[1], best[2], None)
 
 
 @dataclass(frozen=True)
@@ -280,28 +311,14 @@ class Bands:
         """int64 (Z, Y, X): the phase of the band every voxel's centre falls in."""
         return band_index(self.starts, self.phases, self.u, self.period)
 
-    def coverage(self, phases: int, sigma: float = 0.5) -> np.ndarray:
+    def coverage(self, phases: int, sigma: float = COVERAGE) -> np.ndarray:
         """float32 (Z, Y, X, K): every phase's share of each voxel, from the signed distance of
         its centre to the nearest band boundaries measured along the field's gradient, through
         a smooth step as wide as a Gaussian of `sigma` voxels: the smooth boundaries blurred,
         where blurring the voxels' labels keeps their staircases along the grid."""
-        u = np.mod(self.u, self.period) if self.period is not None else self.u
         grad = [np.gradient(self.u, axis=a) for a in range(3)]
         width = np.maximum(np.sqrt(sum(g * g for g in grad)), 1e-6) * sigma
-        last = len(self.phases) - 1
-        j = np.clip(np.searchsorted(self.starts, u, side="right") - 1, 0, last)
-        below = _step(-(u - self.starts[j]) / width)
-        above = _step(-(self.starts[j + 1] - u) / width)
-        wrap = self.period is not None
-        lower = np.where(j > 0, j - 1, last if wrap else 0)
-        upper = np.where(j < last, j + 1, 0 if wrap else last)
-        out = np.zeros(u.shape + (phases,), np.float32)
-        for band, share in ((j, np.maximum(1.0 - below - above, 0.0)), (lower, below),
-                            (upper, above)):
-            phase = self.phases[band]
-            for k in range(phases):
-                out[..., k] += np.where(phase == k, share, 0.0)
-        return out / np.maximum(out.sum(-1, keepdims=True), 1e-6)
+        return band_shares(self.starts, self.phases, self.period, self.u, width, phases)
 
 
 def wobble_amplitude(lum: np.ndarray, angle: float, spacing: float) -> float:
@@ -397,5 +414,9 @@ def fit_layers(images, labels, analyses, ex_of_axis) -> LayerModel:
         lengths = tuple(x * thin for x in lengths)
         wobble *= thin
     extent = labels[int(ex_of_axis[ring[0]])].shape if ring is not None else (0.0, 0.0)
+    light = [np.concatenate([lab(im)[..., 0][lb == p] for im, lb in zip(images, labels)])
+             for p in range(phases)]
+    lightness = tuple(float(v.mean()) if len(v) else 0.0 for v in light)
+    layouts = tuple(labels[int(ex_of_axis[a])] for a in range(3))
     return LayerModel(normal, axis, rel, lengths, trans, wobble, spacing,
-                      tuple(float(v) for v in extent), tilt)
+                      tuple(float(v) for v in extent), tilt, lightness, layouts)
