@@ -50,7 +50,7 @@ def plan_exemplar(kind: str = "blocks"):
         side, count = 48, 5
         grid = (np.arange(count) + 0.5) * side / count
         seeds = np.stack(np.meshgrid(grid, grid, indexing="ij"), -1).reshape(-1, 2)
-        seeds += rng.uniform(-2.5, 2.5, seeds.shape)
+        seeds += rng.uniform(-4.0, 4.0, seeds.shape)  # less and it reads as a lattice of gaps
         offsets = (np.stack(np.mgrid[0:side, 0:side], -1) + 0.5)[:, :, None, :] - seeds
         offsets -= side * np.round(offsets / side)
         dist = np.sqrt((offsets ** 2).sum(-1))
