@@ -8,6 +8,8 @@ exemplar's spectrum and colours, the fine band drawn out along the sheets' local
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from osmap_cli.solid.structure.fill import PLANE_AXES
@@ -173,15 +175,27 @@ def along_sheets(values: np.ndarray, normals: np.ndarray, sigma: float,
                     np.fft.rfftfreq(shape[2]).astype(np.float32), indexing="ij")
     k2 = k[0] ** 2 + k[1] ** 2 + k[2] ** 2
     inner = tuple(slice(a, a + n) for (a, _), n in zip(ends, values.shape[:3]))
-    out = np.zeros(values.shape, np.float32)
-    for d in dirs:
+
+    def steered(d):
         share = weight(d)
         if not share.any():
-            continue
+            return None
         across = k[0] * d[0] + k[1] * d[1] + k[2] * d[2]
         gauss = np.exp(np.float32(-2.0 * np.pi ** 2 * sigma ** 2) * (k2 - across ** 2))
         blurred = np.fft.irfftn(spectrum * gauss[..., None], s=shape, axes=(0, 1, 2))[inner]
-        out += (share / total)[..., None] * blurred
+        return (share / total)[..., None] * blurred
+
+    out = np.zeros(values.shape, np.float32)
+    from numba import get_num_threads  # the threads the user gave the kernels
+
+    workers = max(1, get_num_threads())
+    # NumPy's FFTs release the GIL; the directions are summed in their order whatever the
+    # thread count (the same bytes), a batch of `workers` at a time (bounded memory)
+    with ThreadPoolExecutor(workers) as pool:
+        for start in range(0, len(dirs), workers):
+            for part in pool.map(steered, dirs[start:start + workers]):
+                if part is not None:
+                    out += part
     return out
 
 
