@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from osmap_cli.solid.structure import layer_scale as ls
 from osmap_cli.solid.structure.layer_scale import COVERAGE, band_shares
 from osmap_cli.solid.structure.noise import smooth_noise
 
@@ -274,8 +275,6 @@ def layer_bands(shape, model: LayerModel, seed: int, wrap: bool) -> Bands:
     widths within the volume fitted (layer_scale.fitted_sequence), the one whose faces read
     nearest FACE_SCALE times the exemplar's scale (the farthest face the nearest) is kept.
     Rings keep one draw as drawn; --tileable layers one draw stretched to their period."""
-    from osmap_cli.solid.structure import layer_scale as ls
-
     u, period = layer_coordinate(shape, model, seed, wrap)
     if period is not None:
         return Bands(u, *periodic_bands(model, period, seed), period)
