@@ -84,14 +84,12 @@ def stages(name: str, side: int, seed: int, fill_changes: dict):
     """[(stage, voxels)], the exemplar and its profile ids, the volume's regions."""
     from osmap_cli.solid import SolidOptions
     from osmap_cli.solid.core import SolidTask
-    from osmap_cli.solid.method_structure import Options, _fill_labels
+    from osmap_cli.solid.method_structure import Options, _fill_labels, final_colours
     from osmap_cli.solid.pipeline import build_pyramid, plan_levels
     from osmap_cli.solid.structure import fill as fl
     from osmap_cli.solid.structure import method as sm
     from osmap_cli.solid.structure.analysis import enlarge
-    from osmap_cli.solid.structure.particle_colour import match_particles
     from osmap_cli.solid.structure.profiles import profile_ids
-    from osmap_cli.texture.histogram import match_quantiles
 
     exemplar = load_exemplar(name, side)
     opts = SolidOptions(width=side, height=side, depth=side, seed=seed, method="structure")
@@ -114,27 +112,13 @@ def stages(name: str, side: int, seed: int, fill_changes: dict):
                              built.identity, params)
     out.append(("fill", voxels))
     wrap = task.tileable
-    pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])
-    low = sm.smooth_volume(voxels, sm.MATCH_SIGMA, wrap)
-    blurred = [sm.gaussian_blur(im, sm.MATCH_SIGMA, wrap).astype(np.float32)
-               for im in found.images]
-    matched = fl.match_phases(low, built.labels, built.coverage, blurred, found.ex_of_axis,
-                              found.ex_labels, nyquist=True, wrap=wrap) + (voxels - low)
-    out.append(("phases", matched))
-    matched = fl.match_regions(matched, built.regions, built.region_colours,
-                               built.coverage[..., 1], pixels.min(0), pixels.max(0))
-    out.append(("means", matched))
-    matched = match_particles(matched, built.regions, built.region_sources,
-                              found.model[0].spreads, built.coverage[..., 1],
-                              pixels.min(0), pixels.max(0))
-    out.append(("particles", matched))
-    finished = sm.finish(voxels, found, built, params.phase_match, wrap)
+    finished = sm.finish(voxels, found, built, params.phase_match, wrap,
+                         record=lambda stage, values: out.append((stage, values)))
     out.append(("decorrelated", finished))
     detailed = sm.add_detail(finished, source, found, built, task.exemplars(0),
                              task.ex_of_axis, params.detail, task.seed, wrap)
     out.append(("detail", detailed))
-    final = match_quantiles(np.clip(detailed, pixels.min(0), pixels.max(0)), pixels,
-                            options.final_histogram)
+    final = final_colours(detailed, found.images, options.final_histogram)
     out.append(("final", final))
     reader = found.analyses[0].reader
     big = enlarge(exemplar, reader.factor)  # the profiles as the sources read them

@@ -283,8 +283,8 @@ def test_veins_take_the_exemplars_detail_as_noise_of_its_spectrum(grain):
 
 def test_vein_detail_grain_lies_along_the_sheets():
     """Noise stretched within planes normal to n: on every slice family its gradients lie
-    along n's trace (the fine streaks run along the veins); unstretched it is isotropic."""
-    from osmap_cli.solid.structure.noise import face_anisotropy, oriented_field
+    along n's trace (the fine streaks run along the veins)."""
+    from osmap_cli.solid.structure.noise import oriented_field
 
     freqs = (np.arange(32) + 0.5) / 64
     power = np.exp(-(freqs / 0.2) ** 2)
@@ -294,8 +294,6 @@ def test_vein_detail_grain_lies_along_the_sheets():
         g = np.gradient(field)
         corr = float((g[i] * g[j]).mean() / np.sqrt((g[i] ** 2).mean() * (g[j] ** 2).mean()))
         assert corr * np.sign(n[i] * n[j]) > 0.2, a
-    assert face_anisotropy(freqs, power, n, 1.0) < 0.01
-    assert face_anisotropy(freqs, power, n, 2.0) > 0.3
 
 
 def test_vein_detail_follows_curved_sheets_locally():

@@ -83,6 +83,17 @@ def _fill_labels(found, wrap: bool) -> list:
             for a, im in zip(found.analyses, found.images)]
 
 
+def final_colours(voxels: np.ndarray, images, amount: float) -> np.ndarray:
+    """The finished voxels within the exemplars' colour range, moved `amount` of the way to
+    their colour distribution."""
+    pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in images])
+    # the detail added to a colour near the exemplar's darkest or lightest leaves its range
+    voxels = np.clip(voxels, pixels.min(0), pixels.max(0))
+    # the per-phase matching moves the low-pass only; this one gives back the exemplar's
+    # extreme colours that the optimisation's averaging loses
+    return match_quantiles(voxels, pixels, amount)
+
+
 def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
     started = time.perf_counter()
     found = plan(task.images, task.ex_of_axis, options.structure, options.phases, task.seed,
@@ -102,13 +113,8 @@ def run(task: SolidTask, options: Options, progress=None) -> SolidResult:
     voxels = add_detail(voxels, source, found, built, task.exemplars(0), task.ex_of_axis,
                         options.fill.detail, task.seed, task.tileable, options.fill.vein_detail,
                         options.fill.vein_grain)
-    voxels = soften_walls(voxels, built.walls, task.tileable)
-    pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])
-    # the detail added to a colour near the exemplar's darkest or lightest leaves its range
-    voxels = np.clip(voxels, pixels.min(0), pixels.max(0))
-    # the per-phase matching moves the low-pass only; this one gives back the exemplar's
-    # extreme colours that the optimisation's averaging loses
-    voxels = match_quantiles(voxels, pixels, options.final_histogram)
+    voxels = final_colours(soften_walls(voxels, built.walls, task.tileable), found.images,
+                           options.final_histogram)
     source = unsheared(source)
     seconds = time.perf_counter() - started
     report = (*found.report(), f"structure step {structure_seconds:.1f} s of "

@@ -265,9 +265,12 @@ def build_structure(found: Plan, shape, seed: int, wrap: bool) -> Built:
     return Built(labels, identity.astype(np.float32), coverage, bands=bands)
 
 
-def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np.ndarray:
+def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool,
+           record=None) -> np.ndarray:
     """The fill's voxels with each phase's colours (and each particle's mean) moved `strength`
-    of the way to the exemplar's."""
+    of the way to the exemplar's. record(stage, voxels), when given, sees the colours after
+    each step ("phases", then for particles "means" and "particles")."""
+    record = record or (lambda stage, values: None)
     if strength <= 0:
         return voxels
     pixels = np.concatenate([im.reshape(-1, im.shape[2]) for im in found.images])
@@ -280,12 +283,15 @@ def finish(voxels, found: Plan, built: Built, strength: float, wrap: bool) -> np
     nyquist = built.regions is not None or found.kind == "layers"
     matched = match_phases(low, built.labels, built.coverage, blurred, found.ex_of_axis,
                            found.ex_labels, nyquist=nyquist, wrap=wrap) + (voxels - low)
+    record("phases", matched)
     if built.regions is not None:
         matched = match_regions(matched, built.regions, built.region_colours,
                                 built.coverage[..., 1], pixels.min(0), pixels.max(0))
+        record("means", matched)
         matched = match_particles(matched, built.regions, built.region_sources,
                                   found.model[0].spreads, built.coverage[..., 1],
                                   pixels.min(0), pixels.max(0))
+        record("particles", matched)
         if built.walls is None:  # packed cells' thin walls pool no matrix
             matched = decorrelate_particles(matched, built.labels, found.images,
                                             found.ex_of_axis, found.ex_labels, wrap)

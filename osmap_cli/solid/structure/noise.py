@@ -162,18 +162,3 @@ def oriented_field(shape, frequencies, power, seed: int, normal=None,
     the planes perpendicular to `normal` (grain lying in those planes; None or 1: isotropic)."""
     return spectral_field(shape, _stretched(frequencies, power, normal, stretch),
                           seed).astype(np.float32)
-
-
-def face_anisotropy(frequencies, power, normal, stretch: float, side: int = 32) -> float:
-    """How strongly oriented the gradients of oriented_field's slices are, on average over the
-    three slice families: (l1 - l2) / (l1 + l2) of their central-difference structure tensor
-    (0: isotropic), computed from the spectrum."""
-    f = np.fft.fftfreq(side)
-    k = np.meshgrid(f, f, f, indexing="ij")
-    p = _stretched(frequencies, power, normal, stretch)(*k) ** 2
-    d = [np.sin(2 * np.pi * kk) for kk in k]
-    out = []
-    for i, j in ((1, 2), (0, 2), (0, 1)):
-        a, b, c = (p * d[i] ** 2).sum(), (p * d[j] ** 2).sum(), (p * d[i] * d[j]).sum()
-        out.append(np.sqrt((a - b) ** 2 + 4 * c * c) / max(a + b, 1e-30))
-    return float(np.mean(out))
