@@ -15,9 +15,11 @@ One job a module:
   bands of a warped turbulent field, a truncated Gaussian field); noise: smooth random fields;
 - method: the analysis over the exemplars and the model fitted (`plan`), the volume's
   structure (`build_structure`), the final colour matching (`finish`);
-- fill: the guided slice-window optimisation that gives the structure its appearance, and
-  the residual detail; sheared: the exemplar sheared along the bands of a face that shows
-  layers at another angle; particle_colour, crowding: each particle's colours after the fill;
+- fill: the guided slice-window optimisation that gives the structure its appearance;
+  detail: the residual detail (copied, or noise drawn out along the sheets); layer_scale: the
+  band widths a layered volume holds and the scale its faces show; sheared: the exemplar
+  sheared along the bands of a face that shows layers at another angle; particle_colour,
+  crowding: each particle's colours after the fill;
 - slices, meter, picture: cuts through volumes, the profile meter, the --analyse picture.
 
 This package imports nothing heavy at import time; STRUCTURES is the --structure choice list.
